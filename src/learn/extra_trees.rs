@@ -1,0 +1,1 @@
+//! Extra-Trees regression (SPEC §3), written in its own change.

@@ -1,0 +1,1 @@
+//! The early-stopped MLP (SPEC §3), written in its own change.

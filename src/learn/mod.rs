@@ -1,0 +1,136 @@
+//! Learners: the regressor S of the thesis (SPEC §3).
+//!
+//! The interface follows linfa's `Fit`/`PredictInplace`: hyperparameters are serde structs checked
+//! before fitting ([`Learner::check`]), and a fitted [`Regressor`] predicts into a caller's buffer, for a
+//! batch of rows or for one row (the greedy policy asks one state at a time).
+
+pub mod extra_trees;
+pub mod mlp;
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// A borrowed row-major matrix: `data.len() == rows × cols`.
+#[derive(Debug, Clone, Copy)]
+pub struct Rows<'a> {
+    data: &'a [f64],
+    cols: usize,
+}
+
+impl<'a> Rows<'a> {
+    /// Views `data` as rows of `cols` values. Fails if `cols` is 0 or does not divide the length.
+    pub fn new(data: &'a [f64], cols: usize) -> Result<Self> {
+        if cols == 0 || data.len() % cols != 0 {
+            return Err(Error::Data(format!("{} values do not form rows of {cols} columns", data.len())));
+        }
+        Ok(Rows { data, cols })
+    }
+    /// Number of rows.
+    pub fn n_rows(&self) -> usize {
+        self.data.len() / self.cols
+    }
+    /// Number of columns (features).
+    pub fn n_cols(&self) -> usize {
+        self.cols
+    }
+    /// Row `i`.
+    #[inline]
+    pub fn row(&self, i: usize) -> &'a [f64] {
+        &self.data[i * self.cols..(i + 1) * self.cols]
+    }
+    /// The underlying row-major data.
+    pub fn data(&self) -> &'a [f64] {
+        self.data
+    }
+    /// Rows `start..end` as a view.
+    pub fn slice(&self, start: usize, end: usize) -> Rows<'a> {
+        Rows { data: &self.data[start * self.cols..end * self.cols], cols: self.cols }
+    }
+}
+
+/// Checks a training set: at least one row, as many targets as rows, every value finite.
+pub fn check_training_data(x: Rows<'_>, y: &[f64]) -> Result<()> {
+    if x.n_rows() == 0 {
+        return Err(Error::Data("the training set is empty".into()));
+    }
+    if y.len() != x.n_rows() {
+        return Err(Error::Data(format!("{} rows but {} targets", x.n_rows(), y.len())));
+    }
+    if let Some(i) = x.data().iter().position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!("non-finite input {} at row {}, column {}", x.data()[i], i / x.n_cols(), i % x.n_cols())));
+    }
+    if let Some(i) = y.iter().position(|v| !v.is_finite()) {
+        return Err(Error::Data(format!("non-finite target {} at row {i}", y[i])));
+    }
+    Ok(())
+}
+
+/// Why an iterative fit ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    /// Not an iterative learner (trees).
+    NotIterative,
+    /// Early stopping: patience + 1 consecutive epochs without improvement.
+    EarlyStopping,
+    /// The epoch cap was reached.
+    MaxEpochs,
+    /// The training or validation loss became non-finite (a diverged fit: FQI records it).
+    NonFinite,
+}
+
+/// What a fit did, beyond the model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitInfo {
+    /// Epochs run (0 for trees).
+    pub epochs: usize,
+    /// Why it stopped.
+    pub stop: StopReason,
+}
+
+/// A fitted regression model.
+pub trait Regressor: Send + Sync {
+    /// Number of input features it was fitted on.
+    fn n_inputs(&self) -> usize;
+    /// Predicts one row (`row.len() == n_inputs()`).
+    fn predict_row(&self, row: &[f64]) -> f64;
+    /// Predicts every row of `x` into `out` (`out.len() == x.n_rows()`), allocating nothing per row.
+    fn predict_into(&self, x: Rows<'_>, out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.predict_row(x.row(i));
+        }
+    }
+}
+
+/// A learning algorithm with its hyperparameters.
+pub trait Learner: Send + Sync {
+    /// The fitted model.
+    type Model: Regressor;
+    /// Validates the hyperparameters; the error names the field and what is allowed.
+    fn check(&self) -> Result<()>;
+    /// Fits a model on `x` → `y`. Every random draw derives from `seed` (SPEC §7), so the model is
+    /// a pure function of (hyperparameters, data, seed), whatever the thread count.
+    fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Self::Model, FitInfo)>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_view_and_checks() {
+        let d = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let r = Rows::new(&d, 2).unwrap();
+        assert_eq!(r.n_rows(), 3);
+        assert_eq!(r.row(1), &[3.0, 4.0]);
+        assert_eq!(r.slice(1, 3).row(0), &[3.0, 4.0]);
+        assert!(Rows::new(&d, 4).is_err());
+        assert!(check_training_data(r, &[1.0, 2.0, 3.0]).is_ok());
+        assert!(check_training_data(r, &[1.0, 2.0]).is_err());
+        let e = check_training_data(r, &[1.0, f64::NAN, 3.0]).unwrap_err().to_string();
+        assert!(e.contains("non-finite target NaN at row 1"), "{e}");
+        let bad = [1.0, f64::INFINITY];
+        let e = check_training_data(Rows::new(&bad, 2).unwrap(), &[0.0]).unwrap_err().to_string();
+        assert!(e.contains("row 0, column 1"), "{e}");
+    }
+}
