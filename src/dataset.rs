@@ -194,9 +194,7 @@ mod tests {
 
     #[test]
     fn horizon_cut_is_not_absorbing() {
-        let mut c = crate::env::CartPoleConfig::default();
-        c.horizon = 3;
-        c.dataset_start = vec![[0.0, 0.0]; 4];
+        let c = crate::env::CartPoleConfig { horizon: 3, dataset_start: vec![[0.0, 0.0]; 4], ..Default::default() };
         let d = collect(&c, 4, 2).unwrap();
         assert_eq!(d.len(), 12, "no episode can fail within 3 steps from rest");
         assert!(d.absorbing.iter().all(|&a| !a));

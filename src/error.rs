@@ -28,12 +28,12 @@ pub enum Error {
     #[error("bad data: {0}")]
     Data(String),
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {err}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// What the OS said.
-        source: std::io::Error,
+        /// What the OS said (part of the message, not a separate cause, so it prints once).
+        err: std::io::Error,
     },
     /// A spec, config or result file is malformed.
     #[error("{path}: {message}")]
@@ -53,7 +53,7 @@ impl Error {
 
     /// Shorthand for [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io { path: path.into(), err: source }
     }
 
     /// Prefixes the field path of an [`Error::Invalid`] with `prefix.` (used when a nested config is

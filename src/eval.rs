@@ -73,8 +73,7 @@ mod tests {
         let s = evaluate(c.env(), &mut |_| 4, eval_seed(1, 0));
         assert!(s.steps < 5000.0, "fell after {} steps", s.steps);
         assert!(s.score < 0.0);
-        let mut quiet = crate::env::BicycleConfig::default();
-        quiet.noise = 0.0;
+        let quiet = crate::env::BicycleConfig { noise: 0.0, ..Default::default() };
         let s = evaluate(&quiet, &mut |_| 4, eval_seed(1, 0));
         assert_eq!(s.steps, 5000.0, "without noise nothing moves");
         assert_eq!(s.score, 0.0);

@@ -3,6 +3,7 @@
 //! Data flows one way: spec → datasets → learner → FQI → evaluation → fitness → GA → tuned config →
 //! comparison → report. Each module is one of those concepts.
 
+pub mod cli;
 pub mod dataset;
 pub mod env;
 pub mod error;

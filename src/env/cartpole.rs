@@ -56,12 +56,7 @@ impl Default for CartPoleConfig {
             gamma: 1.0,
             actions: vec![0.0, 1.0],
             dataset_start: vec![[-2.4, 2.4], [-3.5, 3.5], [-0.05, 0.05], [-3.0, 3.0]],
-            eval: EvalConfig {
-                episodes: 1,
-                steps: 200,
-                score: ScoreKind::Return,
-                start: vec![[-0.05, 0.05]; 4],
-            },
+            eval: EvalConfig { episodes: 1, steps: 200, score: ScoreKind::Return, start: vec![[-0.05, 0.05]; 4] },
         }
     }
 }

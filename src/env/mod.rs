@@ -227,8 +227,7 @@ mod tests {
 
     #[test]
     fn invalid_settings_name_the_field() {
-        let mut c = CartPoleConfig::default();
-        c.gamma = 1.5;
+        let c = CartPoleConfig { gamma: 1.5, ..Default::default() };
         let e = EnvConfig::Cartpole(c).validate().unwrap_err().to_string();
         assert!(e.contains("env.gamma"), "{e}");
     }

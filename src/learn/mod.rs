@@ -20,7 +20,7 @@ pub struct Rows<'a> {
 impl<'a> Rows<'a> {
     /// Views `data` as rows of `cols` values. Fails if `cols` is 0 or does not divide the length.
     pub fn new(data: &'a [f64], cols: usize) -> Result<Self> {
-        if cols == 0 || data.len() % cols != 0 {
+        if cols == 0 || !data.len().is_multiple_of(cols) {
             return Err(Error::Data(format!("{} values do not form rows of {cols} columns", data.len())));
         }
         Ok(Rows { data, cols })
@@ -57,7 +57,12 @@ pub fn check_training_data(x: Rows<'_>, y: &[f64]) -> Result<()> {
         return Err(Error::Data(format!("{} rows but {} targets", x.n_rows(), y.len())));
     }
     if let Some(i) = x.data().iter().position(|v| !v.is_finite()) {
-        return Err(Error::Data(format!("non-finite input {} at row {}, column {}", x.data()[i], i / x.n_cols(), i % x.n_cols())));
+        return Err(Error::Data(format!(
+            "non-finite input {} at row {}, column {}",
+            x.data()[i],
+            i / x.n_cols(),
+            i % x.n_cols()
+        )));
     }
     if let Some(i) = y.iter().position(|v| !v.is_finite()) {
         return Err(Error::Data(format!("non-finite target {} at row {i}", y[i])));
