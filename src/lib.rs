@@ -8,6 +8,7 @@ pub mod dataset;
 pub mod env;
 pub mod error;
 pub mod eval;
+pub mod fqi;
 pub mod learn;
 pub mod rng;
 pub mod store;

@@ -4,6 +4,7 @@
 //! before fitting ([`Learner::check`]), and a fitted [`Regressor`] predicts into a caller's buffer, for a
 //! batch of rows or for one row (the greedy policy asks one state at a time).
 
+pub mod actions;
 pub mod extra_trees;
 pub mod mlp;
 
