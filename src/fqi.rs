@@ -254,7 +254,7 @@ impl<'a, L: Learner> Fqi<'a, L> {
 
         let t2 = Instant::now();
         let s = self.settings;
-        let (score, steps) = if k % s.eval_every.max(1) == 0 || k == s.iterations {
+        let (score, steps) = if k.is_multiple_of(s.eval_every.max(1)) || k == s.iterations {
             let sc = self.evaluate();
             (Some(sc.score), Some(sc.steps))
         } else {
@@ -429,8 +429,8 @@ mod tests {
         let mut q = vec![[0.0f64; 2]; 6];
         for _ in 0..k {
             let old = q.clone();
-            for s in 0..5 {
-                for (a, qa) in q[s].iter_mut().enumerate() {
+            for (s, qs) in q.iter_mut().enumerate().take(5) {
+                for (a, qa) in qs.iter_mut().enumerate() {
                     let n = Chain::next(s as f64, a as f64) as usize;
                     *qa = if n == 5 { 1.0 } else { -0.1 + 0.9 * old[n][0].max(old[n][1]) };
                 }
