@@ -41,8 +41,7 @@ pub struct Encoded {
     train_index: Vec<usize>,
     /// `per_action`: start of each action's rows in `train_index` (len = actions + 1).
     train_offsets: Vec<usize>,
-    /// `input`: rows `[x'_i, a]` for every i and action a, i-major (n × |A| rows).
-    /// `per_action`: rows `x'_i` (n rows).
+    /// Next states `x'_i` (n rows); the models are asked for every action at once.
     next: Vec<f64>,
 }
 
@@ -72,13 +71,8 @@ impl Encoded {
                     e.train.extend_from_slice(&d.state[i * od..(i + 1) * od]);
                     e.train.push(d.action[i]);
                 }
-                e.next.reserve(n * actions.len() * (od + 1));
-                for i in 0..n {
-                    for &a in actions {
-                        e.next.extend_from_slice(&d.next_state[i * od..(i + 1) * od]);
-                        e.next.push(a);
-                    }
-                }
+                // Next states only: models predict them under every action at once.
+                e.next = d.next_state.clone();
             }
             ActionEncoding::PerAction => {
                 let mut groups: Vec<Vec<usize>> = vec![Vec::new(); actions.len()];
@@ -174,7 +168,9 @@ impl Encoded {
     pub fn predict_next<M: Regressor>(&self, q: &QModel<M>, out: &mut [f64]) {
         let na = self.actions.len();
         match q {
-            QModel::Input(m) => m.predict_into(Rows::new(&self.next, self.n_inputs()).expect("laid out"), out),
+            QModel::Input(m) => {
+                m.predict_actions_into(Rows::new(&self.next, self.obs_dim).expect("laid out"), &self.actions, out)
+            }
             QModel::PerAction(ms) => {
                 let mut buf = vec![0.0; self.n];
                 for (j, m) in ms.iter().enumerate() {
@@ -198,15 +194,14 @@ pub enum QModel<M> {
 }
 
 impl<M: Regressor> QModel<M> {
-    /// Adds `Q(obs, a_j)` to `out[j]` for every action, with `row` as scratch of `obs.len() + 1` values.
-    pub fn add_q_values(&self, obs: &[f64], actions: &[f64], row: &mut [f64], out: &mut [f64]) {
+    /// Adds `Q(obs, a_j)` to `out[j]` for every action; `scratch` holds at least `actions.len()` values.
+    pub fn add_q_values(&self, obs: &[f64], actions: &[f64], scratch: &mut [f64], out: &mut [f64]) {
         match self {
             QModel::Input(m) => {
-                let d = obs.len();
-                row[..d].copy_from_slice(obs);
-                for (o, &a) in out.iter_mut().zip(actions) {
-                    row[d] = a;
-                    *o += m.predict_row(&row[..=d]);
+                let q = &mut scratch[..actions.len()];
+                m.predict_actions_into(Rows::new(obs, obs.len()).expect("one row"), actions, q);
+                for (o, v) in out.iter_mut().zip(q.iter()) {
+                    *o += v;
                 }
             }
             QModel::PerAction(ms) => {

@@ -1,1 +1,1469 @@
-//! Extra-Trees regression (SPEC §3), written in its own change.
+//! Extra-Trees regression (SPEC §3), with scikit-learn's `ExtraTreesRegressor` semantics.
+//!
+//! Each tree sees every row (no bootstrap). At a node, every feature is tried in a random order:
+//! constant features are skipped, the others get one threshold drawn uniformly in the node's
+//! `[min, max)` of that feature, and the candidate with the largest variance reduction wins
+//! (candidates leaving fewer than `min_samples_leaf` rows on a side are rejected). A row goes left iff
+//! `x[f] <= threshold`. Leaves hold the mean target; the forest predicts the mean over trees.
+//!
+//! Like scikit-learn, the inputs are compared in `f32`: thresholds are chosen among the rows' `f32`
+//! values, and a query goes left iff `(x as f32) <= t`. The stored `f64` threshold is rewritten so
+//! that the plain `x <= threshold` on the `f64` query gives exactly that answer (see
+//! [`query_threshold`]), which keeps prediction free of conversions.
+//!
+//! Speed: each tree works on its own copy of the data, stored column by column and physically
+//! partitioned at every split (two buffers, alternating with depth), so every pass over a node's
+//! rows reads contiguous memory; on CPUs with AVX-512 the passes are vectorised by hand (see
+//! [`avx512`]), with sums kept in the same lanes as the portable code so the trees are identical.
+//! Tree `t` draws from the stream `(seed, "tree", t)` only, so the forest is identical for any
+//! thread count. Prediction walks 8 trees (or 8 rows) at once, branch-free, so cache misses overlap.
+//! [`Regressor::predict_actions_into`] (Q of every action, the action being the last input) walks
+//! each tree once per state and forks only at the splits on the action (see [`forked_walks`]),
+//! adding the trees in the same order as `predict_row`, so its answers are bit-identical.
+
+use super::{FitInfo, Learner, Regressor, Rows, StopReason, check_training_data};
+use crate::error::{Error, Result, ensure};
+use crate::rng::{self, Rng};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Hyperparameters of an Extra-Trees forest (scikit-learn names and defaults, except the 50 trees).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExtraTreesParams {
+    /// Number of trees (≥ 1).
+    pub n_trees: usize,
+    /// Maximum depth, in edges from the root (1 = a stump); `None` grows until the other rules stop.
+    pub max_depth: Option<usize>,
+    /// A node with fewer rows than this is a leaf (≥ 2).
+    pub min_samples_split: usize,
+    /// Every leaf keeps at least this many rows (≥ 1).
+    pub min_samples_leaf: usize,
+}
+
+impl Default for ExtraTreesParams {
+    fn default() -> Self {
+        ExtraTreesParams { n_trees: 50, max_depth: None, min_samples_split: 2, min_samples_leaf: 1 }
+    }
+}
+
+impl Learner for ExtraTreesParams {
+    type Model = ExtraTrees;
+
+    fn check(&self) -> Result<()> {
+        ensure(self.n_trees >= 1, "n_trees", self.n_trees, "must be ≥ 1")?;
+        if let Some(d) = self.max_depth {
+            ensure(d >= 1, "max_depth", d, "must be ≥ 1 (or null for unlimited)")?;
+        }
+        ensure(self.min_samples_split >= 2, "min_samples_split", self.min_samples_split, "must be ≥ 2")?;
+        ensure(self.min_samples_leaf >= 1, "min_samples_leaf", self.min_samples_leaf, "must be ≥ 1")
+    }
+
+    fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(ExtraTrees, FitInfo)> {
+        self.check()?;
+        check_training_data(x, y)?;
+        let data = Data::new(x, y)?;
+        let trees: Vec<Tree> = (0..self.n_trees)
+            .into_par_iter()
+            // One workspace per rayon split (a few per fit), not per tree: each costs page faults.
+            .map_init(
+                || Workspace::new(data.d, data.n),
+                |ws, t| build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64])),
+            )
+            .collect();
+        let model = ExtraTrees { n_inputs: data.d, trees };
+        Ok((model, FitInfo { epochs: 0, stop: StopReason::NotIterative }))
+    }
+}
+
+/// A fitted Extra-Trees forest.
+#[derive(Debug, Clone)]
+pub struct ExtraTrees {
+    n_inputs: usize,
+    trees: Vec<Tree>,
+}
+
+impl ExtraTrees {
+    /// Number of trees.
+    pub fn n_trees(&self) -> usize {
+        self.trees.len()
+    }
+
+    /// Depth of tree `t` (edges from the root to its deepest leaf; 0 for a single leaf).
+    pub fn tree_depth(&self, t: usize) -> usize {
+        self.trees[t].depth
+    }
+
+    /// Number of nodes (internal and leaves) of tree `t`.
+    pub fn n_nodes(&self, t: usize) -> usize {
+        self.trees[t].nodes.len()
+    }
+
+    /// Number of leaves of tree `t`.
+    pub fn n_leaves(&self, t: usize) -> usize {
+        self.trees[t].nodes.iter().filter(|n| n.is_leaf()).count()
+    }
+
+    /// Training rows in each leaf of tree `t`, in node order.
+    pub fn leaf_sizes(&self, t: usize) -> Vec<usize> {
+        let tree = &self.trees[t];
+        tree.nodes.iter().zip(&tree.counts).filter(|(n, _)| n.is_leaf()).map(|(_, &c)| c as usize).collect()
+    }
+
+    /// Features tested by the internal nodes of tree `t`, in node order.
+    pub fn split_features(&self, t: usize) -> Vec<usize> {
+        self.trees[t].nodes.iter().filter(|n| !n.is_leaf()).map(|n| n.feat as usize).collect()
+    }
+}
+
+/// Walks interleaved in prediction: trees for one row, rows for one tree.
+const WALKS: usize = 8;
+/// Rows per block in [`ExtraTrees::predict_into`]: a tree is walked for the whole block before the
+/// next tree, so its nodes stay in cache. Blocks are also the unit of parallel work; a row's sum
+/// over trees is in tree order whatever the split, so the result never depends on it.
+const PREDICT_BLOCK: usize = 4096;
+
+impl Regressor for ExtraTrees {
+    fn n_inputs(&self) -> usize {
+        self.n_inputs
+    }
+
+    #[inline]
+    fn predict_row(&self, row: &[f64]) -> f64 {
+        assert_eq!(row.len(), self.n_inputs, "row length must equal the number of inputs");
+        let mut sum = 0.0;
+        for group in self.trees.chunks(WALKS) {
+            let steps = group.iter().map(|t| t.depth).max().unwrap_or(0);
+            let mut at = [0u32; WALKS];
+            for _ in 0..steps {
+                for (i, tree) in at.iter_mut().zip(group) {
+                    *i = tree.step(*i, row);
+                }
+            }
+            for (&i, tree) in at.iter().zip(group) {
+                sum += tree.nodes[i as usize].val;
+            }
+        }
+        sum / self.trees.len() as f64
+    }
+
+    fn predict_into(&self, x: Rows<'_>, out: &mut [f64]) {
+        assert_eq!(x.n_cols(), self.n_inputs, "rows must have as many columns as inputs");
+        assert_eq!(out.len(), x.n_rows(), "one output per row");
+        let work = |(b, block): (usize, &mut [f64])| {
+            let start = b * PREDICT_BLOCK;
+            self.predict_block(x.slice(start, start + block.len()), block);
+        };
+        // Same tree order per row as predict_row, so both give bit-identical answers.
+        if out.len() * self.trees.len() < 200_000 {
+            out.chunks_mut(PREDICT_BLOCK).enumerate().for_each(work);
+        } else {
+            out.par_chunks_mut(PREDICT_BLOCK).enumerate().for_each(work);
+        }
+    }
+
+    /// Each tree is walked once per state, forking only at the nodes that split on the action (the
+    /// last input): a walk carries the set of actions still on it, as a bit mask. Every output is
+    /// the sum over trees in tree order divided by the tree count, as in `predict_row`, so the
+    /// results are bit-identical to the default's.
+    fn predict_actions_into(&self, states: Rows<'_>, actions: &[f64], out: &mut [f64]) {
+        let k = actions.len();
+        assert_eq!(states.n_cols() + 1, self.n_inputs, "states must have one column fewer than the inputs");
+        assert_eq!(out.len(), states.n_rows() * k, "one output per state and action");
+        if k == 0 {
+            return;
+        }
+        if states.n_rows() < LANES {
+            // The greedy policy's case (one state): the walks in flight are over trees.
+            for (i, o) in out.chunks_exact_mut(k).enumerate() {
+                self.predict_actions_state(states.row(i), actions, o);
+            }
+            return;
+        }
+        let rows_per_block = (ACTION_BLOCK / k).max(LANES);
+        let work = |(b, block): (usize, &mut [f64])| {
+            let start = b * rows_per_block;
+            self.predict_actions_block(states.slice(start, start + block.len() / k), actions, block);
+        };
+        if out.len() * self.trees.len() < 200_000 {
+            out.chunks_mut(rows_per_block * k).enumerate().for_each(work);
+        } else {
+            out.par_chunks_mut(rows_per_block * k).enumerate().for_each(work);
+        }
+    }
+}
+
+impl ExtraTrees {
+    fn predict_block(&self, rows: Rows<'_>, out: &mut [f64]) {
+        out.fill(0.0);
+        for tree in &self.trees {
+            for (g, group) in out.chunks_mut(WALKS).enumerate() {
+                let mut at = [0u32; WALKS];
+                for _ in 0..tree.depth {
+                    for (k, i) in at[..group.len()].iter_mut().enumerate() {
+                        *i = tree.step(*i, rows.row(g * WALKS + k));
+                    }
+                }
+                for (o, &i) in group.iter_mut().zip(&at) {
+                    *o += tree.nodes[i as usize].val;
+                }
+            }
+        }
+        let m = self.trees.len() as f64;
+        for o in out.iter_mut() {
+            *o /= m;
+        }
+    }
+}
+
+/// Most actions one forked walk carries (a bit each); more are taken in groups of this many.
+const MASK_ACTIONS: usize = 64;
+/// Outputs (states × actions) per block in [`ExtraTrees::predict_actions_into`]: a tree is walked
+/// for every state of the block before the next tree, and blocks are the unit of parallel work.
+const ACTION_BLOCK: usize = 32768;
+/// Leaf values buffered per call of [`ExtraTrees::predict_actions_state`] (trees × actions).
+const STATE_VALUES: usize = 512;
+
+impl ExtraTrees {
+    /// [`Regressor::predict_actions_into`] for a block of at least [`LANES`] states, trees
+    /// outermost (so each tree's nodes stay in cache), the walks in flight over states. `out`
+    /// accumulates the sums in tree order (each output gets one leaf per tree), then is divided.
+    fn predict_actions_block(&self, states: Rows<'_>, actions: &[f64], out: &mut [f64]) {
+        let k = actions.len();
+        out.fill(0.0);
+        for tree in &self.trees {
+            for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
+                let base = c * MASK_ACTIONS;
+                forked_walks::<true, false>(
+                    states.n_rows(),
+                    acts,
+                    states.data(),
+                    states.n_cols(),
+                    |_| &tree.nodes,
+                    |r| r * states.n_cols(),
+                    |r, mut mask, v| {
+                        let acc = &mut out[r * k + base..];
+                        while mask != 0 {
+                            acc[mask.trailing_zeros() as usize] += v;
+                            mask &= mask - 1;
+                        }
+                    },
+                );
+            }
+        }
+        let m = self.trees.len() as f64;
+        for o in out.iter_mut() {
+            *o /= m;
+        }
+    }
+
+    /// [`Regressor::predict_actions_into`] for one state, the walks in flight over trees: the leaf
+    /// values of a group of trees are buffered, then added in tree order.
+    fn predict_actions_state(&self, state: &[f64], actions: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        let mut vals = [0.0; STATE_VALUES];
+        for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
+            let kc = acts.len();
+            let out = &mut out[c * MASK_ACTIONS..c * MASK_ACTIONS + kc];
+            for group in self.trees.chunks(STATE_VALUES / kc) {
+                forked_walks::<false, true>(
+                    group.len(),
+                    acts,
+                    state,
+                    state.len(),
+                    |t| &group[t].nodes,
+                    |_| 0,
+                    |t, mut mask, v| {
+                        let row = &mut vals[t * kc..];
+                        while mask != 0 {
+                            row[mask.trailing_zeros() as usize] = v;
+                            mask &= mask - 1;
+                        }
+                    },
+                );
+                for row in vals[..group.len() * kc].chunks_exact(kc) {
+                    for (o, &v) in out.iter_mut().zip(row) {
+                        *o += v;
+                    }
+                }
+            }
+        }
+        let m = self.trees.len() as f64;
+        for o in out.iter_mut() {
+            *o /= m;
+        }
+    }
+}
+
+/// Walks in flight at once in [`forked_walks`], stepped in turn so that their cache misses overlap.
+const LANES: usize = 8;
+/// Steps the walks of [`forked_walks`] take between two looks at where they stopped.
+const ROUNDS: usize = 4;
+
+/// A fork of [`forked_walks`] waiting to be walked: `node` of the tree of `slot`, with the actions
+/// in `mask`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Fork {
+    node: u32,
+    slot: u32,
+    mask: u64,
+}
+
+/// For each slot `s < n_slots`, walks the tree `tree(s)` with the inputs `[x, a]`, where `x` is the
+/// state `data[offset(s)..offset(s) + d]`, for every action `a` of `acts` (1 to 64 of them) at
+/// once, and calls `leaf(s, mask, value)` for each leaf reached, `mask` holding the actions (bit j
+/// for `acts[j]`) that reach it: every (slot, action) gets exactly one call. A walk forks only at
+/// the nodes that split on the action (feature `d`), and compares as [`Tree::step`] does.
+///
+/// [`LANES`] walks advance together, branch-free, [`ROUNDS`] steps at a time, each stopping at a
+/// leaf or an action split; between rounds, a walk at an action split goes on with the actions
+/// that go left (or right if none do) and a fork with the others is stacked. Once every walk is at
+/// a leaf, the leaves are reported and the lanes refilled, from the stack first. So a slot starts
+/// only when the stack is empty, at most [`LANES`] slots have walks left, and the walks of a slot
+/// carry disjoint non-empty sets of actions: the stack never holds more than `LANES × acts.len()`.
+#[inline(always)]
+fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
+    n_slots: usize,
+    acts: &[f64],
+    data: &[f64],
+    d: usize,
+    tree: impl Fn(usize) -> &'a [Node],
+    offset: impl Fn(usize) -> usize,
+    mut leaf: impl FnMut(usize, u64, f64),
+) {
+    if n_slots == 0 {
+        return;
+    }
+    let full = u64::MAX >> (64 - acts.len());
+    let mut small = [Fork::default(); LANES * 16];
+    let mut big = Vec::new();
+    let stack: &mut [Fork] = if acts.len() <= 16 {
+        &mut small
+    } else {
+        big.resize(LANES * acts.len(), Fork::default());
+        &mut big
+    };
+    let mut top = 0;
+    let feat_d = d as u32;
+    // Lane l: at node `at[l]` of `nodes[l]`, state at `off[l]`, actions `masks[l]`, for `slots[l]`.
+    let mut at = [0u32; LANES];
+    let mut off = [0usize; LANES];
+    let mut masks = [0u64; LANES];
+    let mut slots = [0u32; LANES];
+    let mut nodes: [&[Node]; LANES] = [tree(0); LANES];
+    let mut next = 0;
+    loop {
+        let mut n = 0;
+        while n < LANES {
+            if top > 0 {
+                top -= 1;
+                let f = stack[top];
+                let s = f.slot as usize;
+                (nodes[n], off[n], at[n], masks[n], slots[n]) = (tree(s), offset(s), f.node, f.mask, f.slot);
+            } else if next < n_slots {
+                (nodes[n], off[n], at[n], masks[n], slots[n]) = (tree(next), offset(next), 0, full, next as u32);
+                next += 1;
+            } else {
+                break;
+            }
+            n += 1;
+        }
+        if n == 0 {
+            return;
+        }
+        // Spare lanes repeat lane 0's walk, unreported.
+        for l in n..LANES {
+            (nodes[l], off[l], at[l]) = (nodes[0], off[0], at[0]);
+        }
+        let live = (1u32 << n) - 1;
+        loop {
+            let (mut at_leaf, mut at_action) = (0u32, 0u32);
+            for round in 0..ROUNDS {
+                for l in 0..LANES {
+                    let node = if SAME_TREE { nodes[0] } else { nodes[l] }[at[l] as usize];
+                    let go = node.feat < feat_d;
+                    let x = data[if SAME_STATE { 0 } else { off[l] } + (node.feat as usize).min(d - 1)];
+                    let step = node.left + ((x <= node.val) as u32 ^ 1);
+                    at[l] = if go { step } else { at[l] };
+                    if round == ROUNDS - 1 {
+                        at_leaf |= ((node.feat > feat_d) as u32) << l;
+                        at_action |= ((node.feat == feat_d) as u32) << l;
+                    }
+                }
+            }
+            at_action &= live;
+            if at_leaf & live == live {
+                break;
+            }
+            while at_action != 0 {
+                let l = at_action.trailing_zeros() as usize;
+                at_action &= at_action - 1;
+                let node = nodes[l][at[l] as usize];
+                let mut le = 0u64;
+                for (j, &a) in acts.iter().enumerate() {
+                    le |= ((a <= node.val) as u64) << j;
+                }
+                let (left, right) = (masks[l] & le, masks[l] & !le);
+                if left == 0 {
+                    at[l] = node.left + 1;
+                } else {
+                    if right != 0 {
+                        stack[top] = Fork { node: node.left + 1, slot: slots[l], mask: right };
+                        top += 1;
+                    }
+                    (at[l], masks[l]) = (node.left, left);
+                }
+            }
+        }
+        for l in 0..n {
+            leaf(slots[l] as usize, masks[l], nodes[l][at[l] as usize].val);
+        }
+    }
+}
+
+/// Marks a leaf in [`Node::feat`].
+const LEAF: u32 = 1 << 31;
+
+/// A tree node (16 bytes). Internal: a row goes to `left` iff `x[feat] <= val`, else to `left + 1`
+/// (siblings are adjacent). Leaf: `feat == LEAF`, `left` is the leaf itself and `val` the
+/// prediction, so that walking on from a leaf stays there (see [`Tree::step`]).
+#[derive(Debug, Clone, Copy)]
+#[repr(C)]
+struct Node {
+    val: f64,
+    feat: u32,
+    left: u32,
+}
+
+/// One tree, as a flat array with the root at 0.
+#[derive(Debug, Clone)]
+struct Tree {
+    nodes: Vec<Node>,
+    /// Training rows that reached each node.
+    counts: Vec<u32>,
+    depth: usize,
+}
+
+impl Node {
+    fn leaf(slot: usize, value: f64) -> Node {
+        Node { val: value, feat: LEAF, left: slot as u32 }
+    }
+
+    fn is_leaf(&self) -> bool {
+        self.feat & LEAF != 0
+    }
+}
+
+impl Tree {
+    /// One step down from node `i` (a leaf stays put). Branch-free, so several walks (trees or
+    /// rows) interleave and their cache misses overlap, which a loop ending at the leaf prevents.
+    #[inline(always)]
+    fn step(&self, i: u32, row: &[f64]) -> u32 {
+        let node = &self.nodes[i as usize];
+        let x = row[(node.feat & !LEAF) as usize];
+        let internal = (node.feat >> 31) ^ 1;
+        // Right unless x <= threshold (so NaN goes right, as `NaN as f32 <= t` is false).
+        let right = (x <= node.val) as u32 ^ 1;
+        node.left + (right & internal)
+    }
+}
+
+/// sklearn's `FEATURE_THRESHOLD`: a feature whose range in the node is at most this is constant.
+const FEATURE_THRESHOLD: f64 = 1e-7;
+
+/// The training set as the trees read it: inputs in `f32`, column-major (`x[f * n + i]`).
+struct Data {
+    n: usize,
+    d: usize,
+    x: Vec<f32>,
+    y: Vec<f64>,
+}
+
+impl Data {
+    fn new(rows: Rows<'_>, y: &[f64]) -> Result<Self> {
+        let (n, d) = (rows.n_rows(), rows.n_cols());
+        // Node indices are u32 and a tree has at most 2n − 1 nodes; feature indices leave the
+        // top bit to LEAF.
+        if n > (u32::MAX / 2) as usize || d >= LEAF as usize {
+            return Err(Error::Data(format!("{n} rows × {d} columns: Extra-Trees accepts < 2^31 of each")));
+        }
+        let mut x = vec![0.0f32; n * d];
+        for (i, row) in rows.data().chunks_exact(d).enumerate() {
+            for (f, &v) in row.iter().enumerate() {
+                if v.abs() > f32::MAX as f64 {
+                    return Err(Error::Data(format!(
+                        "input {v} at row {i}, column {f} is too large for Extra-Trees (|x| ≤ {:e})",
+                        f32::MAX
+                    )));
+                }
+                x[f * n + i] = v as f32;
+            }
+        }
+        Ok(Data { n, d, x, y: y.to_vec() })
+    }
+}
+
+/// A tree builder's scratch memory, reused across the trees one worker builds.
+struct Workspace {
+    /// Two copies of the columns: a node at odd depth reads `bx` and writes its children into `ax`,
+    /// a node at even depth reads `ax` (the root reads [`Data`]) and writes into `bx`.
+    ax: Vec<f32>,
+    bx: Vec<f32>,
+    ay: Vec<f64>,
+    by: Vec<f64>,
+    /// Where the portable partition sends each row of the node, relative to its start.
+    pos: Vec<u32>,
+    /// Which rows go left, 16 per mask (AVX-512 partition).
+    masks: Vec<u16>,
+    order: Vec<usize>,
+    /// The node's candidate splits and their left-side sums.
+    cands: Vec<Candidate>,
+    sums: Vec<LeftSums>,
+    stack: Vec<Pending>,
+}
+
+impl Workspace {
+    fn new(d: usize, n: usize) -> Self {
+        Workspace {
+            ax: vec![0.0; d * n],
+            bx: vec![0.0; d * n],
+            ay: vec![0.0; n],
+            by: vec![0.0; n],
+            pos: vec![0; n],
+            masks: vec![0; n.div_ceil(16)],
+            order: (0..d).collect(),
+            cands: Vec::with_capacity(d),
+            sums: vec![LeftSums::default(); d],
+            stack: Vec::new(),
+        }
+    }
+}
+
+/// A node waiting to be grown: rows `start..end` of the buffer its depth reads.
+#[derive(Clone, Copy)]
+struct Pending {
+    slot: usize,
+    start: usize,
+    end: usize,
+    depth: usize,
+}
+
+/// A candidate split: feature and threshold (rows with `x <= thr` go left).
+#[derive(Clone, Copy)]
+struct Candidate {
+    feat: usize,
+    thr: f32,
+}
+
+/// Rows with `x <= t` so far, their target sums in 32 lanes (lane k: rows ≡ k mod 32), and the
+/// total of the lanes once every row is in.
+#[derive(Clone, Copy)]
+struct LeftSums {
+    lanes: [f64; 32],
+    count: usize,
+    sum: f64,
+}
+
+impl Default for LeftSums {
+    fn default() -> Self {
+        LeftSums { lanes: [0.0; 32], count: 0, sum: 0.0 }
+    }
+}
+
+/// The best candidate split of a node so far.
+#[derive(Clone, Copy)]
+struct Split {
+    feat: usize,
+    thr: f32,
+    n_left: usize,
+    proxy: f64,
+}
+
+/// Builds one tree, with AVX-512 kernels when the CPU has them. Both paths build the same tree: the
+/// kernels add in the same order (explicit lanes), and partitions and extrema are exact.
+fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if avx512::available() {
+            // SAFETY: the features were just detected.
+            return unsafe { build_tree_avx512(p, data, ws, rng) };
+        }
+        if is_x86_feature_detected!("avx2") {
+            // SAFETY: the feature was just detected.
+            return unsafe { build_tree_avx2(p, data, ws, rng) };
+        }
+    }
+    build_tree_impl::<false>(p, data, ws, rng)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,popcnt")]
+fn build_tree_avx512(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
+    build_tree_impl::<true>(p, data, ws, rng)
+}
+
+/// The portable kernels, compiled for AVX2 (the compiler vectorises the extrema).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
+    build_tree_impl::<false>(p, data, ws, rng)
+}
+
+/// The builder (sklearn's depth-first builder with its random splitter). `WIDE` selects the AVX-512
+/// kernels; it is only true inside [`build_tree_avx512`].
+#[inline(always)]
+fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, mut rng: Rng) -> Tree {
+    let (n_all, d) = (data.n, data.d);
+    let max_depth = p.max_depth.unwrap_or(usize::MAX);
+    let (min_split, min_leaf) = (p.min_samples_split, p.min_samples_leaf);
+    let mut nodes = vec![Node::leaf(0, 0.0)];
+    let mut counts = vec![0u32];
+    let mut tree_depth = 0;
+    ws.order.clear();
+    ws.order.extend(0..d);
+    ws.stack.clear();
+    ws.stack.push(Pending { slot: 0, start: 0, end: n_all, depth: 0 });
+
+    while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
+        let n = end - start;
+        counts[slot] = n as u32;
+        let (src_x, src_y, dst_x, dst_y) = if depth == 0 {
+            (&data.x[..], &data.y[..], &mut ws.bx[..], &mut ws.by[..])
+        } else if depth % 2 == 1 {
+            (&ws.bx[..], &ws.by[..], &mut ws.ax[..], &mut ws.ay[..])
+        } else {
+            (&ws.ax[..], &ws.ay[..], &mut ws.bx[..], &mut ws.by[..])
+        };
+        let ys = &src_y[start..end];
+        let (mean, var) = mean_var::<WIDE>(ys);
+
+        let mut best: Option<Split> = None;
+        // sklearn's leaf rules; `var <= EPSILON` is its "impurity ≈ 0".
+        if n >= min_split && n >= 2 * min_leaf && depth < max_depth && var > f64::EPSILON {
+            for i in (1..d).rev() {
+                let j = rng::below(&mut rng, i as u64 + 1) as usize;
+                ws.order.swap(i, j);
+            }
+            // Draw every threshold first (the draws depend only on each feature's range), then
+            // count all candidates in one sweep, so the node's targets are read once, not d times.
+            ws.cands.clear();
+            for &f in &ws.order {
+                let xs = &src_x[f * n_all + start..f * n_all + end];
+                let (lo, hi) = min_max::<WIDE>(xs);
+                let (lo, hi) = (lo as f64, hi as f64);
+                if hi <= lo + FEATURE_THRESHOLD {
+                    continue;
+                }
+                let mut thr = rng::uniform(&mut rng, lo, hi);
+                if thr >= hi {
+                    thr = lo; // rounding reached the top: sklearn falls back to the minimum
+                }
+                // The rows are f32, so `x <= thr` ⟺ `x <= t` with t the largest f32 ≤ thr.
+                ws.cands.push(Candidate { feat: f, thr: round_down_f32(thr) });
+            }
+            let sums = &mut ws.sums[..ws.cands.len()];
+            count_sum_left::<WIDE>(src_x, n_all, start, ys, &ws.cands, sums);
+            for (c, s) in ws.cands.iter().zip(sums.iter()) {
+                let (n_left, sum_left) = (s.count, s.sum);
+                let n_right = n - n_left;
+                if n_left < min_leaf || n_right < min_leaf {
+                    continue;
+                }
+                // Variance reduction × n = n_l n_r / n · (mean_l − mean_r)², written with the
+                // left sum's deviation from its share of the total so a large target offset
+                // cancels before squaring.
+                let dev = sum_left - n_left as f64 * mean;
+                let proxy = dev * dev * (1.0 / n_left as f64 + 1.0 / n_right as f64);
+                if best.is_none_or(|b| proxy > b.proxy) {
+                    best = Some(Split { feat: c.feat, thr: c.thr, n_left, proxy });
+                }
+            }
+        }
+
+        let Some(split) = best else {
+            nodes[slot] = Node::leaf(slot, mean);
+            tree_depth = tree_depth.max(depth);
+            continue;
+        };
+
+        // Stable partition of every column (and y) into the other buffer.
+        let key = &src_x[split.feat * n_all + start..split.feat * n_all + end];
+        let columns = (0..d).map(|f| f * n_all + start..f * n_all + end);
+        #[cfg(target_arch = "x86_64")]
+        if WIDE {
+            let masks = &mut ws.masks[..n.div_ceil(16)];
+            // SAFETY: WIDE is only set in build_tree_avx512, called after detecting the features.
+            unsafe {
+                avx512::left_masks(key, split.thr, masks);
+                for range in columns.clone() {
+                    avx512::partition(&src_x[range.clone()], &mut dst_x[range], masks, split.n_left);
+                }
+                avx512::partition(ys, &mut dst_y[start..end], masks, split.n_left);
+            }
+        }
+        if !WIDE || cfg!(not(target_arch = "x86_64")) {
+            let pos = &mut ws.pos[..n];
+            portable::positions(key, split.thr, split.n_left, pos);
+            for range in columns {
+                portable::scatter(&src_x[range.clone()], &mut dst_x[range], pos);
+            }
+            portable::scatter(ys, &mut dst_y[start..end], pos);
+        }
+
+        let left = nodes.len();
+        nodes[slot] = Node { val: query_threshold(split.thr), feat: split.feat as u32, left: left as u32 };
+        nodes.extend([Node::leaf(left, 0.0), Node::leaf(left + 1, 0.0)]);
+        counts.extend([0; 2]);
+        let mid = start + split.n_left;
+        // Right pushed first so the left subtree is grown first (depth-first, as sklearn).
+        ws.stack.push(Pending { slot: left + 1, start: mid, end, depth: depth + 1 });
+        ws.stack.push(Pending { slot: left, start, end: mid, depth: depth + 1 });
+    }
+    Tree { nodes, counts, depth: tree_depth }
+}
+
+#[inline(always)]
+fn min_max<const WIDE: bool>(xs: &[f32]) -> (f32, f32) {
+    #[cfg(target_arch = "x86_64")]
+    if WIDE {
+        // SAFETY: see build_tree_impl.
+        return unsafe { avx512::min_max(xs) };
+    }
+    portable::min_max(xs)
+}
+
+#[inline(always)]
+fn mean_var<const WIDE: bool>(ys: &[f64]) -> (f64, f64) {
+    #[cfg(target_arch = "x86_64")]
+    if WIDE {
+        // SAFETY: see build_tree_impl.
+        return unsafe { avx512::mean_var(ys) };
+    }
+    portable::mean_var(ys)
+}
+
+/// Rows per sweep step in [`count_sum_left`] (a multiple of 32): the step's targets (16 KiB) stay
+/// in L1 while every candidate's column passes over them.
+const SWEEP: usize = 2048;
+
+/// For each candidate, the rows of the node (`ys.len()` rows from `start`) with `x <= thr` and the
+/// sum of their targets, left in `sums[i].count` and `sums[i].sum`.
+#[inline(always)]
+fn count_sum_left<const WIDE: bool>(
+    src_x: &[f32],
+    n_all: usize,
+    start: usize,
+    ys: &[f64],
+    cands: &[Candidate],
+    sums: &mut [LeftSums],
+) {
+    let n = ys.len();
+    sums.fill(LeftSums::default());
+    let mut a = 0;
+    while a < n {
+        let b = (a + SWEEP).min(n);
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start + a..c.feat * n_all + start + b];
+            #[cfg(target_arch = "x86_64")]
+            if WIDE {
+                // SAFETY: see build_tree_impl.
+                unsafe { avx512::count_sum_blocks(xs, &ys[a..b], c.thr, s) };
+                continue;
+            }
+            portable::count_sum_blocks(xs, &ys[a..b], c.thr, s);
+        }
+        a = b;
+    }
+    for s in sums.iter_mut() {
+        let l = &s.lanes;
+        s.sum = hsum8(std::array::from_fn(|j| (l[j] + l[j + 8]) + (l[j + 16] + l[j + 24])));
+    }
+}
+
+/// Sum of 8 lanes in the order of an AVX-512 halving reduction (the same order in every path).
+#[inline(always)]
+fn hsum8(v: [f64; 8]) -> f64 {
+    ((v[0] + v[4]) + (v[2] + v[6])) + ((v[1] + v[5]) + (v[3] + v[7]))
+}
+
+/// From the 16 lanes of Σ(y − y0) and Σ(y − y0)² over n rows: the mean and the population variance.
+#[inline(always)]
+fn finish_mean_var(y0: f64, s: [f64; 16], q: [f64; 16], n: usize) -> (f64, f64) {
+    let s = hsum8(std::array::from_fn(|j| s[j] + s[j + 8]));
+    let q = hsum8(std::array::from_fn(|j| q[j] + q[j + 8]));
+    let m = s / n as f64;
+    (y0 + m, (q / n as f64 - m * m).max(0.0))
+}
+
+/// Scalar kernels, and the reference for the summation order of the AVX-512 ones: a sum over rows
+/// is kept in lanes, lane k taking the rows ≡ k modulo the lane count (16 or 32), so a vector
+/// kernel adds in the same order (its padding lanes add +0.0, which changes nothing).
+mod portable {
+    use super::{LeftSums, finish_mean_var};
+
+    /// Mean and population variance of `ys` (non-empty), from sums shifted by `ys[0]` so that a
+    /// constant target gives exactly 0 and a large offset loses no precision.
+    #[inline(always)]
+    pub fn mean_var(ys: &[f64]) -> (f64, f64) {
+        let y0 = ys[0];
+        let (mut s, mut q) = ([0.0f64; 16], [0.0f64; 16]);
+        let blocks = ys.chunks_exact(16);
+        let rest = blocks.remainder();
+        for c in blocks {
+            for k in 0..16 {
+                let v = c[k] - y0;
+                s[k] += v;
+                q[k] += v * v;
+            }
+        }
+        for (k, &y) in rest.iter().enumerate() {
+            let v = y - y0;
+            s[k] += v;
+            q[k] += v * v;
+        }
+        finish_mean_var(y0, s, q, ys.len())
+    }
+
+    /// Minimum and maximum of `xs` (non-empty, no NaN); exact, so any order will do.
+    #[inline(always)]
+    pub fn min_max(xs: &[f32]) -> (f32, f32) {
+        let (mut lo, mut hi) = ([f32::INFINITY; 16], [f32::NEG_INFINITY; 16]);
+        let blocks = xs.chunks_exact(16);
+        let rest = blocks.remainder();
+        for c in blocks {
+            for k in 0..16 {
+                lo[k] = if c[k] < lo[k] { c[k] } else { lo[k] };
+                hi[k] = if c[k] > hi[k] { c[k] } else { hi[k] };
+            }
+        }
+        for (k, &v) in rest.iter().enumerate() {
+            lo[k] = if v < lo[k] { v } else { lo[k] };
+            hi[k] = if v > hi[k] { v } else { hi[k] };
+        }
+        let (mut a, mut b) = (lo[0], hi[0]);
+        for k in 1..16 {
+            a = if lo[k] < a { lo[k] } else { a };
+            b = if hi[k] > b { hi[k] } else { b };
+        }
+        (a, b)
+    }
+
+    /// Adds rows to `s` (starting at a multiple of 32 rows into the node): lane k gets the target
+    /// of each row ≡ k (mod 32) with `x <= t`, else +0.0.
+    #[inline(always)]
+    pub fn count_sum_blocks(xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums) {
+        let full = xs.len() / 32 * 32;
+        let mut counts = [0u32; 32];
+        for (xb, yb) in xs[..full].chunks_exact(32).zip(ys[..full].chunks_exact(32)) {
+            for k in 0..32 {
+                let left = xb[k] <= t;
+                counts[k] += left as u32;
+                s.lanes[k] += if left { yb[k] } else { 0.0 };
+            }
+        }
+        for (k, (&x, &y)) in xs[full..].iter().zip(&ys[full..]).enumerate() {
+            let left = x <= t;
+            counts[k] += left as u32;
+            s.lanes[k] += if left { y } else { 0.0 };
+        }
+        s.count += counts.iter().map(|&c| c as usize).sum::<usize>();
+    }
+
+    /// Destination of each row in a stable partition by `key <= t` (`n_left` rows go left).
+    #[inline(always)]
+    pub fn positions(key: &[f32], t: f32, n_left: usize, pos: &mut [u32]) {
+        let (mut l, mut r) = (0u32, n_left as u32);
+        for (p, &v) in pos.iter_mut().zip(key) {
+            let left = v <= t;
+            *p = if left { l } else { r };
+            l += left as u32;
+            r += !left as u32;
+        }
+    }
+
+    /// `dst[pos[i]] = src[i]`.
+    #[inline(always)]
+    pub fn scatter<T: Copy>(src: &[T], dst: &mut [T], pos: &[u32]) {
+        for (&v, &p) in src.iter().zip(pos) {
+            dst[p as usize] = v;
+        }
+    }
+}
+
+/// AVX-512 kernels: the same results as [`portable`], bit for bit. A node's last partial block
+/// of 16 rows is read with masked loads, so no row is handled by scalar code (small nodes are
+/// many, and a scalar loop's unpredictable branches cost more than the vector work).
+#[cfg(target_arch = "x86_64")]
+mod avx512 {
+    use super::{LeftSums, finish_mean_var};
+    use std::arch::x86_64::*;
+
+    /// Whether this CPU runs these kernels.
+    pub fn available() -> bool {
+        is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512vl")
+            && is_x86_feature_detected!("avx512bw")
+            && is_x86_feature_detected!("avx512dq")
+            && is_x86_feature_detected!("popcnt")
+    }
+
+    /// The lanes of a block of 16 rows that exist, when `len` rows remain.
+    #[inline(always)]
+    fn valid(len: usize) -> u16 {
+        if len >= 16 { u16::MAX } else { (1u16 << len) - 1 }
+    }
+
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn store(v: __m512d, out: &mut [f64]) {
+        assert!(out.len() >= 8);
+        // SAFETY: `out` holds at least 8 f64.
+        unsafe { _mm512_storeu_pd(out.as_mut_ptr(), v) };
+    }
+
+    /// [`portable::mean_var`].
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub fn mean_var(ys: &[f64]) -> (f64, f64) {
+        let n = ys.len();
+        let y0 = ys[0];
+        let shift = _mm512_set1_pd(y0);
+        let zero = _mm512_setzero_pd();
+        let (mut s0, mut s1, mut q0, mut q1) = (zero, zero, zero, zero);
+        for i in (0..n).step_by(16) {
+            let m = valid(n - i);
+            // SAFETY: the masks cover only rows i..n; masked-out lanes are not read.
+            let (v0, v1) = unsafe {
+                let p = ys.as_ptr().add(i);
+                let (m0, m1) = (m as u8, (m >> 8) as u8);
+                (
+                    _mm512_maskz_sub_pd(m0, _mm512_maskz_loadu_pd(m0, p), shift),
+                    _mm512_maskz_sub_pd(m1, _mm512_maskz_loadu_pd(m1, p.wrapping_add(8)), shift),
+                )
+            };
+            s0 = _mm512_add_pd(s0, v0);
+            s1 = _mm512_add_pd(s1, v1);
+            q0 = _mm512_add_pd(q0, _mm512_mul_pd(v0, v0));
+            q1 = _mm512_add_pd(q1, _mm512_mul_pd(v1, v1));
+        }
+        let (mut s, mut q) = ([0.0; 16], [0.0; 16]);
+        store(s0, &mut s[..8]);
+        store(s1, &mut s[8..]);
+        store(q0, &mut q[..8]);
+        store(q1, &mut q[8..]);
+        finish_mean_var(y0, s, q, n)
+    }
+
+    /// [`portable::min_max`].
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub fn min_max(xs: &[f32]) -> (f32, f32) {
+        let n = xs.len();
+        let (mut lo, mut hi) = (_mm512_set1_ps(f32::INFINITY), _mm512_set1_ps(f32::NEG_INFINITY));
+        for i in (0..n).step_by(16) {
+            let m = valid(n - i);
+            // SAFETY: the mask covers only rows i..n; masked-out lanes are not read.
+            let x = unsafe { _mm512_maskz_loadu_ps(m, xs.as_ptr().add(i)) };
+            lo = _mm512_mask_min_ps(lo, m, lo, x);
+            hi = _mm512_mask_max_ps(hi, m, hi, x);
+        }
+        (_mm512_reduce_min_ps(lo), _mm512_reduce_max_ps(hi))
+    }
+
+    /// [`portable::count_sum_blocks`].
+    #[inline]
+    #[target_feature(enable = "avx512f,popcnt")]
+    pub fn count_sum_blocks(xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums) {
+        let n = xs.len();
+        assert_eq!(ys.len(), n);
+        let tv = _mm512_set1_ps(t);
+        // SAFETY: `lanes` holds 32 f64.
+        let mut acc: [__m512d; 4] = std::array::from_fn(|i| unsafe { _mm512_loadu_pd(s.lanes.as_ptr().add(8 * i)) });
+        let mut count = 0usize;
+        for i in (0..n).step_by(16) {
+            let m = valid(n - i);
+            let h = (i / 16) % 2;
+            // SAFETY: the mask covers only rows i..n; masked-out lanes are not read.
+            let (k, y0, y1) = unsafe {
+                let (px, py) = (xs.as_ptr().add(i), ys.as_ptr().add(i));
+                let k = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, _mm512_maskz_loadu_ps(m, px), tv);
+                (k, _mm512_maskz_loadu_pd(k as u8, py), _mm512_maskz_loadu_pd((k >> 8) as u8, py.wrapping_add(8)))
+            };
+            count += k.count_ones() as usize;
+            // Zeros where x > t or past the end: +0.0, exactly as the portable `else { 0.0 }`.
+            acc[2 * h] = _mm512_add_pd(acc[2 * h], y0);
+            acc[2 * h + 1] = _mm512_add_pd(acc[2 * h + 1], y1);
+        }
+        for (i, a) in acc.iter().enumerate() {
+            store(*a, &mut s.lanes[8 * i..]);
+        }
+        s.count += count;
+    }
+
+    /// `masks[b]` bit i set iff row 16 b + i exists and `key[16 b + i] <= t`.
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    pub fn left_masks(key: &[f32], t: f32, masks: &mut [u16]) {
+        let n = key.len();
+        assert_eq!(masks.len(), n.div_ceil(16));
+        let tv = _mm512_set1_ps(t);
+        for (b, mask) in masks.iter_mut().enumerate() {
+            let m = valid(n - 16 * b);
+            // SAFETY: the mask covers only existing rows; masked-out lanes are not read.
+            let x = unsafe { _mm512_maskz_loadu_ps(m, key.as_ptr().add(16 * b)) };
+            *mask = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, x, tv);
+        }
+    }
+
+    /// A value type the partition moves: f32 inputs, 16 per vector, or f64 targets, 8.
+    pub trait Lane: Copy {
+        /// Stores the lanes of a block of 16 values at `src` selected by `k` contiguously at `dst`,
+        /// writing exactly `k.count_ones()` values if `exact`, else a full 16 (the surplus is
+        /// garbage). Only the lanes in `valid` (a superset of `k`) are read.
+        ///
+        /// # Safety
+        /// AVX-512F is available, the `valid` lanes of `src` exist and `dst` has room for what is
+        /// written.
+        unsafe fn compress16(src: *const Self, valid: u16, k: u16, dst: *mut Self, exact: bool);
+    }
+
+    impl Lane for f32 {
+        #[inline]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn compress16(src: *const f32, valid: u16, k: u16, dst: *mut f32, exact: bool) {
+            // SAFETY: per the trait contract.
+            unsafe {
+                let v = _mm512_maskz_loadu_ps(valid, src);
+                if exact {
+                    _mm512_mask_compressstoreu_ps(dst, k, v);
+                } else {
+                    _mm512_storeu_ps(dst, _mm512_maskz_compress_ps(k, v));
+                }
+            }
+        }
+    }
+
+    impl Lane for f64 {
+        #[inline]
+        #[target_feature(enable = "avx512f,popcnt")]
+        unsafe fn compress16(src: *const f64, valid: u16, k: u16, dst: *mut f64, exact: bool) {
+            // SAFETY: per the trait contract; the first half writes (k as u8).count_ones() values.
+            unsafe {
+                let (k0, k1) = (k as u8, (k >> 8) as u8);
+                let v0 = _mm512_maskz_loadu_pd(valid as u8, src);
+                let v1 = _mm512_maskz_loadu_pd((valid >> 8) as u8, src.wrapping_add(8));
+                let dst1 = dst.add(k0.count_ones() as usize);
+                if exact {
+                    _mm512_mask_compressstoreu_pd(dst, k0, v0);
+                    _mm512_mask_compressstoreu_pd(dst1, k1, v1);
+                } else {
+                    _mm512_storeu_pd(dst, _mm512_maskz_compress_pd(k0, v0));
+                    _mm512_storeu_pd(dst1, _mm512_maskz_compress_pd(k1, v1));
+                }
+            }
+        }
+    }
+
+    /// [`portable::positions`] + [`portable::scatter`]: stable partition of `src` into `dst` by
+    /// the `masks` of [`left_masks`] (`n_left` rows go left). Full-width stores are used while
+    /// their surplus lands on slots that a later store of the same side rewrites.
+    #[inline]
+    #[target_feature(enable = "avx512f,popcnt")]
+    pub fn partition<T: Lane>(src: &[T], dst: &mut [T], masks: &[u16], n_left: usize) {
+        let n = src.len();
+        assert!(dst.len() == n && masks.len() == n.div_ceil(16) && n_left <= n);
+        let (mut l, mut r) = (0, n_left);
+        for (b, &k) in masks.iter().enumerate() {
+            let m = valid(n - 16 * b);
+            let (nk, nr) = (k.count_ones() as usize, (m & !k).count_ones() as usize);
+            // Needed for the stores below to stay inside `dst`; holds when n_left counts the
+            // same comparison as the masks.
+            assert!(k & !m == 0 && l + nk <= n_left && r + nr <= n);
+            // SAFETY: the `m` lanes of block b exist; a full store is taken only when 16 slots
+            // remain on its side, an exact one writes nk (nr) values, which fit (asserted).
+            unsafe {
+                let s = src.as_ptr().add(16 * b);
+                T::compress16(s, m, k, dst.as_mut_ptr().add(l), l + 16 > n_left);
+                T::compress16(s, m, m & !k, dst.as_mut_ptr().add(r), r + 16 > n);
+            }
+            l += nk;
+            r += nr;
+        }
+        assert!(l == n_left && r == n, "the partition counts disagree with the split");
+    }
+}
+
+/// The largest `f32` not above `v` (finite `v` within the `f32` range).
+fn round_down_f32(v: f64) -> f32 {
+    let t = v as f32;
+    if t as f64 > v { t.next_down() } else { t }
+}
+
+/// The `f64` threshold `T` with `x <= T` ⟺ `(x as f32) <= t` for every `f64` x.
+///
+/// `x as f32` rounds to nearest, ties to even, so it is ≤ t exactly when x is below the midpoint
+/// between t and the next `f32` up, or on it when t's last significand bit is 0 (even).
+fn query_threshold(t: f32) -> f64 {
+    let up = t.next_up();
+    let mid = if up.is_finite() {
+        // Exact: both are f32, so their sum needs at most 25 significant bits.
+        (t as f64 + up as f64) / 2.0
+    } else {
+        // t = f32::MAX, whose ulp is 2^104: values round to it up to MAX + 2^103.
+        f32::MAX as f64 + 2f64.powi(103)
+    };
+    if t.to_bits() & 1 == 0 { mid } else { mid.next_down() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `n` rows of `d` uniform inputs in [-1, 1) from a fixed stream.
+    fn random_x(n: usize, d: usize, seed: u64) -> Vec<f64> {
+        let mut r = rng::stream(seed, "test-x", &[]);
+        (0..n * d).map(|_| rng::uniform(&mut r, -1.0, 1.0)).collect()
+    }
+
+    fn target(x: &[f64]) -> f64 {
+        (3.0 * x[0]).sin() + x[1] * x[1]
+    }
+
+    fn synthetic(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
+        let x = random_x(n, 2, seed);
+        let y = x.chunks(2).map(target).collect();
+        (x, y)
+    }
+
+    fn params(n_trees: usize, max_depth: Option<usize>, split: usize, leaf: usize) -> ExtraTreesParams {
+        ExtraTreesParams { n_trees, max_depth, min_samples_split: split, min_samples_leaf: leaf }
+    }
+
+    fn fit(p: &ExtraTreesParams, x: &[f64], y: &[f64], seed: u64) -> ExtraTrees {
+        let cols = x.len() / y.len();
+        p.fit(Rows::new(x, cols).unwrap(), y, seed).unwrap().0
+    }
+
+    fn predict(m: &ExtraTrees, x: &[f64]) -> Vec<f64> {
+        let rows = Rows::new(x, m.n_inputs()).unwrap();
+        let mut out = vec![0.0; rows.n_rows()];
+        m.predict_into(rows, &mut out);
+        out
+    }
+
+    fn mse(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(p, q)| (p - q) * (p - q)).sum::<f64>() / a.len() as f64
+    }
+
+    #[test]
+    fn depth_limit_bounds_depth_and_leaves() {
+        let (x, y) = synthetic(1500, 1);
+        for depth in 1..=7 {
+            let m = fit(&params(5, Some(depth), 2, 1), &x, &y, 3);
+            for t in 0..m.n_trees() {
+                assert!(m.tree_depth(t) <= depth);
+                assert!(m.n_leaves(t) <= 1 << depth, "depth {depth}: {} leaves", m.n_leaves(t));
+                assert_eq!(m.n_nodes(t), 2 * m.n_leaves(t) - 1);
+                // 1500 rows leave room for every allowed level.
+                assert_eq!(m.tree_depth(t), depth);
+            }
+        }
+        let stump = fit(&params(10, Some(1), 2, 1), &x, &y, 4);
+        for t in 0..10 {
+            assert_eq!(stump.n_leaves(t), 2);
+            assert_eq!(stump.split_features(t).len(), 1);
+            assert_eq!(stump.leaf_sizes(t).iter().sum::<usize>(), 1500);
+        }
+    }
+
+    #[test]
+    fn stumps_prefer_the_informative_feature() {
+        // y is a step in x0; x1 is noise. A random cut of x0 explains far more variance than one
+        // of x1 almost always, so the variance criterion should pick x0 in most stumps.
+        let x = random_x(1000, 2, 50);
+        let y: Vec<f64> = x.chunks(2).map(|r| if r[0] > 0.2 { 1.0 } else { 0.0 }).collect();
+        let m = fit(&params(200, Some(1), 2, 1), &x, &y, 3);
+        let on_x0 = (0..200).filter(|&t| m.split_features(t) == [0]).count();
+        assert!(on_x0 > 170, "{on_x0} of 200 stumps split on x0");
+    }
+
+    #[test]
+    fn leaves_respect_min_samples_leaf_and_split() {
+        let (x, y) = synthetic(2000, 2);
+        for (split, leaf) in [(2, 1), (8, 4), (4, 2), (30, 10), (3, 7)] {
+            let m = fit(&params(4, None, split, leaf), &x, &y, 5);
+            for t in 0..m.n_trees() {
+                let sizes = m.leaf_sizes(t);
+                assert_eq!(sizes.iter().sum::<usize>(), 2000);
+                assert!(sizes.iter().all(|&s| s >= leaf), "split {split} leaf {leaf}: {sizes:?}");
+            }
+            // Fully grown with 1-row leaves on distinct inputs: every leaf is a single row.
+            if leaf == 1 {
+                assert!(m.leaf_sizes(0).iter().all(|&s| s == 1));
+            }
+        }
+        // A node smaller than min_samples_split is never split.
+        let m = fit(&params(3, None, 2001, 1), &x, &y, 5);
+        assert_eq!(m.n_leaves(0), 1);
+        assert_eq!(m.tree_depth(0), 0);
+        let m = fit(&params(3, None, 2000, 1), &x, &y, 5);
+        assert!(m.n_leaves(0) >= 2 && m.tree_depth(0) <= 1);
+    }
+
+    #[test]
+    fn fully_grown_tree_reproduces_training_targets() {
+        // Exercises the f32 thresholds: every training row must land in its own leaf.
+        let (x, y) = synthetic(800, 3);
+        // Two trees: (v + v) / 2 == v exactly.
+        let m = fit(&params(2, None, 2, 1), &x, &y, 9);
+        for (row, &target) in x.chunks(2).zip(&y) {
+            assert_eq!(m.predict_row(row), target);
+        }
+    }
+
+    #[test]
+    fn forest_learns_and_improves_with_depth() {
+        let (x, y) = synthetic(2000, 10);
+        let (xt, yt) = synthetic(1000, 11);
+        let mean = y.iter().sum::<f64>() / y.len() as f64;
+        let base = mse(&vec![mean; yt.len()], &yt);
+        let errs: Vec<f64> =
+            [2, 6, 12].iter().map(|&d| mse(&predict(&fit(&params(30, Some(d), 2, 1), &x, &y, 7), &xt), &yt)).collect();
+        assert!(errs[0] < base / 2.0 && errs[1] < errs[0] && errs[2] < errs[1], "{errs:?} vs {base}");
+        assert!(errs[2] < base / 50.0, "{errs:?} vs {base}");
+    }
+
+    #[test]
+    fn same_seed_same_forest_for_any_thread_count() {
+        let (x, y) = synthetic(3000, 20);
+        let (xt, _) = synthetic(500, 21);
+        let p = params(12, Some(10), 4, 2);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| predict(&fit(&p, &x, &y, 42), &xt))
+        };
+        let one = run(1);
+        assert_eq!(one, run(2));
+        assert_eq!(one, run(3));
+        let other = predict(&fit(&p, &x, &y, 43), &xt);
+        assert_ne!(one, other);
+    }
+
+    #[test]
+    fn vector_and_portable_kernels_build_the_same_trees() {
+        #[cfg(target_arch = "x86_64")]
+        if avx512::available() {
+            // Sizes around the block lengths (16, 32) and the sweep step, a large target offset
+            // (rounding differences would show) and duplicated inputs (ties at thresholds).
+            for (n, offset) in [(1, 0.0), (15, 0.0), (17, 1e6), (33, -3.0), (700, 1e6), (5000, 0.5)] {
+                let mut x = random_x(n, 3, n as u64);
+                x.iter_mut().skip(2).step_by(3).for_each(|v| *v = (*v * 4.0).round());
+                let y: Vec<f64> = x.chunks(3).map(|r| offset + target(r) + r[2]).collect();
+                let data = Data::new(Rows::new(&x, 3).unwrap(), &y).unwrap();
+                for p in [params(1, None, 2, 1), params(1, Some(5), 4, 2)] {
+                    let mut ws = Workspace::new(3, n);
+                    let a = build_tree_impl::<false>(&p, &data, &mut ws, rng::stream(9, "tree", &[0]));
+                    // SAFETY: the features were just detected.
+                    let b = unsafe { build_tree_avx512(&p, &data, &mut ws, rng::stream(9, "tree", &[0])) };
+                    assert_eq!(a.counts, b.counts, "n {n}");
+                    for (u, v) in a.nodes.iter().zip(&b.nodes) {
+                        assert_eq!((u.val.to_bits(), u.feat, u.left), (v.val.to_bits(), v.feat, v.left), "n {n}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn predict_into_matches_predict_row() {
+        let (x, y) = synthetic(2000, 30);
+        // Enough rows to go through the parallel path and a ragged last chunk.
+        let xt = random_x(5000 + 17, 2, 31);
+        let m = fit(&params(50, Some(8), 2, 1), &x, &y, 1);
+        let batch = predict(&m, &xt);
+        for (row, &b) in xt.chunks(2).zip(&batch) {
+            assert_eq!(m.predict_row(row), b);
+        }
+    }
+
+    /// A model that keeps the trait's default `predict_actions_into` (one row per action).
+    struct DefaultPath<'a>(&'a ExtraTrees);
+
+    impl Regressor for DefaultPath<'_> {
+        fn n_inputs(&self) -> usize {
+            self.0.n_inputs()
+        }
+        fn predict_row(&self, row: &[f64]) -> f64 {
+            self.0.predict_row(row)
+        }
+    }
+
+    fn predict_actions(m: &dyn Regressor, states: &[f64], actions: &[f64]) -> Vec<u64> {
+        let rows = Rows::new(states, m.n_inputs() - 1).unwrap();
+        let mut out = vec![f64::NAN; rows.n_rows() * actions.len()];
+        m.predict_actions_into(rows, actions, &mut out);
+        out.iter().map(|v| v.to_bits()).collect()
+    }
+
+    #[test]
+    fn predict_actions_into_is_bit_identical_to_the_default() {
+        let d = 3;
+        let n = 3000;
+        let mut r = rng::stream(5, "test-actions", &[]);
+        // Training actions: 9 discrete values, plus a column never split on (constant).
+        let xs = random_x(n, d, 60);
+        let acts: Vec<f64> = (0..n).map(|_| rng::below(&mut r, 9) as f64).collect();
+        let join = |a: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            (0..n).flat_map(|i| xs[i * d..(i + 1) * d].iter().copied().chain([a(i)])).collect()
+        };
+        let x_discrete = join(&|i| acts[i]);
+        let x_constant = join(&|_| 1.0);
+        let x_continuous = join(&|i| xs[i * d] * 0.5 + (i as f64 * 0.37).sin());
+        let noise = |i: usize| (i as f64 * 1.7).cos() * 0.1;
+        // A weak action effect, and one where the action dominates (split at the top of every tree).
+        let y_weak: Vec<f64> = (0..n).map(|i| target(&xs[i * d..]) + 0.2 * acts[i] + noise(i)).collect();
+        let y_strong: Vec<f64> = (0..n).map(|i| 10.0 * (acts[i] - 4.0).abs() + xs[i * d + 2] + noise(i)).collect();
+        let y_cont: Vec<f64> = (0..n).map(|i| x_continuous[i * (d + 1) + d].sin() * 3.0 + xs[i * d + 1]).collect();
+        let forests = [
+            fit(&params(10, Some(12), 4, 2), &x_discrete, &y_weak, 1),
+            fit(&params(7, None, 2, 1), &x_discrete, &y_strong, 2),
+            fit(&params(9, Some(6), 8, 4), &x_constant, &y_weak, 3),
+            fit(&params(12, None, 2, 1), &x_continuous, &y_cont, 4),
+            fit(&params(3, Some(1), 2, 1), &x_discrete, &y_strong, 5),
+            fit(&params(4, None, 2, 1), &x_discrete, &[2.5; 3000], 6),
+        ];
+        assert!(forests[1].split_features(0)[0] == d, "the action should split the root");
+        assert!((0..9).all(|t| forests[2].split_features(t).iter().all(|&f| f != d)));
+        let many: Vec<f64> = (0..70).map(|j| j as f64 * 0.15 - 1.0).collect();
+        let action_sets: Vec<Vec<f64>> = vec![
+            (0..9).map(f64::from).collect(),
+            vec![2.0, -2.0],
+            vec![4.0],
+            vec![8.0, 0.0, 3.5, 3.0, 3.0, -0.0, 0.0, 100.0, -7.0],
+            vec![0.5, f64::NAN, -0.25, 1e-9, f32::MAX as f64 * 2.0],
+            many[..64].to_vec(),
+            many.clone(),
+        ];
+        // Queries: fresh states, the training states (ties with thresholds) and odd values.
+        let mut states = random_x(4100, d, 61);
+        states.extend_from_slice(&xs[..300 * d]);
+        states.extend_from_slice(&[0.0, -0.0, f64::NAN, 1e30, -1e30, 0.5]);
+        let n_states = states.len() / d;
+        for (f, m) in forests.iter().enumerate() {
+            // Actions on, just below and just above the forest's own action thresholds.
+            let on_thresholds: Vec<f64> = (m.trees.iter().flat_map(|t| &t.nodes))
+                .filter(|node| node.feat == d as u32)
+                .flat_map(|node| [node.val, node.val.next_down(), node.val.next_up()])
+                .take(63)
+                .collect();
+            assert_eq!(on_thresholds.is_empty(), f == 2 || f == 5, "forest {f}");
+            // States on the forest's own state thresholds.
+            let mut states = states.clone();
+            for (i, node) in
+                (m.trees.iter().flat_map(|t| &t.nodes)).filter(|node| node.feat < d as u32).take(200).enumerate()
+            {
+                states[i * d + node.feat as usize] = if i % 2 == 0 { node.val } else { node.val.next_up() };
+            }
+            for acts in action_sets.iter().chain([&on_thresholds].into_iter().filter(|a| !a.is_empty())) {
+                let want = predict_actions(&DefaultPath(m), &states, acts);
+                // Many rows (parallel when large enough), a few, and single states.
+                assert!(predict_actions(m, &states, acts) == want, "forest {f}, {} actions", acts.len());
+                for (a, b) in [(0, 5), (10, 19), (100, 100 + LANES + 1)] {
+                    let few = predict_actions(m, &states[a * d..b * d], acts);
+                    assert!(few == want[a * acts.len()..b * acts.len()], "forest {f}, states {a}..{b}");
+                }
+                let single = (0..n_states).step_by(37).chain(n_states - 6..n_states);
+                for i in single {
+                    let one = predict_actions(m, &states[i * d..(i + 1) * d], acts);
+                    assert!(one == want[i * acts.len()..(i + 1) * acts.len()], "forest {f}, state {i}");
+                }
+            }
+        }
+        // Any thread count gives the same answer.
+        let acts = &action_sets[0];
+        let want = predict_actions(&forests[0], &states, acts);
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            assert!(pool.install(|| predict_actions(&forests[0], &states, acts)) == want);
+        }
+        // No states, no actions.
+        assert!(predict_actions(&forests[0], &[], acts).is_empty());
+        assert!(predict_actions(&forests[0], &states, &[]).is_empty());
+    }
+
+    #[test]
+    fn constant_parts_are_not_split() {
+        // Constant target: every tree is one leaf with that value.
+        let x = random_x(300, 3, 40);
+        let m = fit(&params(5, None, 2, 1), &x, &[2.5; 300], 1);
+        assert!((0..5).all(|t| m.n_leaves(t) == 1));
+        assert_eq!(m.predict_row(&[0.0, 0.0, 0.0]), 2.5);
+        // A constant feature is never chosen.
+        let mut x = random_x(500, 3, 41);
+        x.iter_mut().skip(1).step_by(3).for_each(|v| *v = 7.0);
+        let y: Vec<f64> = x.chunks(3).map(|r| r[0] + r[2]).collect();
+        let m = fit(&params(5, None, 2, 1), &x, &y, 2);
+        assert!((0..5).all(|t| m.split_features(t).iter().all(|&f| f != 1)));
+    }
+
+    #[test]
+    fn invalid_params_name_the_field() {
+        let cases = [
+            (params(0, None, 2, 1), "n_trees"),
+            (params(5, Some(0), 2, 1), "max_depth"),
+            (params(5, None, 1, 1), "min_samples_split"),
+            (params(5, None, 2, 0), "min_samples_leaf"),
+        ];
+        let x = [0.0, 1.0];
+        for (p, field) in cases {
+            let e = p.check().unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+            let e = p.fit(Rows::new(&x, 1).unwrap(), &[0.0, 1.0], 0).unwrap_err().to_string();
+            assert!(e.contains(field), "{e}");
+        }
+        assert!(ExtraTreesParams::default().check().is_ok());
+    }
+
+    #[test]
+    fn bad_data_is_an_error() {
+        let p = ExtraTreesParams::default();
+        let x = [0.0, 1.0, f64::NAN, 3.0];
+        assert!(p.fit(Rows::new(&x, 2).unwrap(), &[0.0, 1.0], 0).is_err());
+        let x = [0.0, 1.0, 2.0, 3.0];
+        assert!(p.fit(Rows::new(&x, 2).unwrap(), &[0.0, f64::NAN], 0).is_err());
+        assert!(p.fit(Rows::new(&x, 2).unwrap(), &[0.0], 0).is_err());
+        let x = [0.0, 1e300];
+        let e = p.fit(Rows::new(&x, 1).unwrap(), &[0.0, 1.0], 0).unwrap_err().to_string();
+        assert!(e.contains("too large"), "{e}");
+    }
+
+    #[test]
+    fn params_serde_defaults_and_unknown_fields() {
+        let p: ExtraTreesParams = serde_json::from_str(r#"{"n_trees": 30, "max_depth": 13}"#).unwrap();
+        assert_eq!(p, ExtraTreesParams { n_trees: 30, max_depth: Some(13), ..Default::default() });
+        let p: ExtraTreesParams = serde_json::from_str("{}").unwrap();
+        assert_eq!(p, ExtraTreesParams::default());
+        assert!(serde_json::from_str::<ExtraTreesParams>(r#"{"n_tree": 3}"#).is_err());
+        let back: ExtraTreesParams = serde_json::from_str(&serde_json::to_string(&p).unwrap()).unwrap();
+        assert_eq!(back, p);
+    }
+
+    #[test]
+    fn query_threshold_agrees_with_f32_rounding() {
+        let mut r = rng::stream(1, "test-thr", &[]);
+        let mut ts: Vec<f32> = (0..2000).map(|_| rng::uniform(&mut r, -1e3, 1e3) as f32).collect();
+        ts.extend([0.0, -0.0, 1.0, -1.0, f32::MAX, -f32::MAX, f32::MIN_POSITIVE, 1e-40, 16777216.0]);
+        for &t in &ts {
+            let big = query_threshold(t);
+            let up = t.next_up() as f64;
+            let mid = if t == f32::MAX { f32::MAX as f64 + 2f64.powi(103) } else { (t as f64 + up) / 2.0 };
+            for q in [t as f64, mid.next_down(), mid, mid.next_up(), up, (t as f64).next_down()] {
+                assert_eq!(q <= big, (q as f32) <= t, "t {t:e}, q {q:e}");
+            }
+        }
+        for v in [0.3, -0.3, 1.0 / 3.0, 1e-3, 12345.678] {
+            let t = round_down_f32(v);
+            assert!(t as f64 <= v && (t.next_up() as f64) > v);
+        }
+    }
+}

@@ -106,6 +106,29 @@ pub trait Regressor: Send + Sync {
             *o = self.predict_row(x.row(i));
         }
     }
+
+    /// Predicts each row of `states` extended by each action as its last feature:
+    /// `out[i·|A| + j] = f([states_i, actions[j]])` (the `input` action encoding's Q over all actions).
+    /// Models can do much better than the default, which builds every row: a tree can follow a
+    /// state once and fork only where it splits on the action.
+    fn predict_actions_into(&self, states: Rows<'_>, actions: &[f64], out: &mut [f64]) {
+        let d = states.n_cols();
+        // A stack row for the usual few features: no allocation per call in the greedy policy.
+        let (mut stack, mut heap) = ([0.0f64; 16], Vec::new());
+        let row: &mut [f64] = if d < 16 {
+            &mut stack[..=d]
+        } else {
+            heap.resize(d + 1, 0.0);
+            &mut heap
+        };
+        for i in 0..states.n_rows() {
+            row[..d].copy_from_slice(states.row(i));
+            for (j, &a) in actions.iter().enumerate() {
+                row[d] = a;
+                out[i * actions.len() + j] = self.predict_row(row);
+            }
+        }
+    }
 }
 
 /// A learning algorithm with its hyperparameters.
@@ -138,5 +161,55 @@ mod tests {
         let bad = [1.0, f64::INFINITY];
         let e = check_training_data(Rows::new(&bad, 2).unwrap(), &[0.0]).unwrap_err().to_string();
         assert!(e.contains("row 0, column 1"), "{e}");
+    }
+}
+
+/// A learner with its settings, as spec files and run records name it:
+/// `{"kind": "extra_trees", "n_trees": 50, ...}` or `{"kind": "mlp", "hidden": [10, 10], ...}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum LearnerConfig {
+    /// Extra-Trees (Geurts et al. 2006).
+    ExtraTrees(extra_trees::ExtraTreesParams),
+    /// The early-stopped MLP.
+    Mlp(mlp::MlpParams),
+}
+
+impl LearnerConfig {
+    /// Validates the settings; the error names the field (prefixed `learner.`).
+    pub fn check(&self) -> Result<()> {
+        match self {
+            LearnerConfig::ExtraTrees(p) => p.check(),
+            LearnerConfig::Mlp(p) => p.check(),
+        }
+        .map_err(|e| e.within("learner"))
+    }
+
+    /// The complexity knob the thesis sweeps: max depth for trees, units of the (single) hidden
+    /// layer for networks.
+    pub fn complexity(&self) -> Option<usize> {
+        match self {
+            LearnerConfig::ExtraTrees(p) => p.max_depth,
+            LearnerConfig::Mlp(p) => p.hidden.first().copied(),
+        }
+    }
+
+    /// The same learner at another complexity (see [`LearnerConfig::complexity`]); a network becomes
+    /// one hidden layer of `c` units, as in the thesis's complexity analysis.
+    pub fn with_complexity(&self, c: usize) -> Self {
+        match self {
+            LearnerConfig::ExtraTrees(p) => {
+                LearnerConfig::ExtraTrees(extra_trees::ExtraTreesParams { max_depth: Some(c), ..p.clone() })
+            }
+            LearnerConfig::Mlp(p) => LearnerConfig::Mlp(mlp::MlpParams { hidden: vec![c], ..p.clone() }),
+        }
+    }
+
+    /// A short label: `et` or `mlp`.
+    pub fn short(&self) -> &'static str {
+        match self {
+            LearnerConfig::ExtraTrees(_) => "et",
+            LearnerConfig::Mlp(_) => "mlp",
+        }
     }
 }

@@ -1,1 +1,0 @@
-//! The early-stopped MLP (SPEC §3), written in its own change.

@@ -1,0 +1,387 @@
+//! The early-stopped MLP regressor (SPEC §3).
+//!
+//! Hidden layers with one activation, a linear output, Glorot-uniform weights and zero biases;
+//! inputs and targets z-scored on each fit (the model keeps the scaling, so it takes and returns
+//! raw values); MSE loss; RMSProp as in Keras 1.2.1; mini-batches over a fresh shuffle of the
+//! training rows every epoch; the last `validation_fraction` of the rows, as given, for Keras-style
+//! early stopping ([`EarlyStopping`]).
+//!
+//! Everything is f32, computed 16 rows at a time by hand-written kernels (`kernels`) that give the
+//! same bits on every x86-64 CPU: the AVX-512, AVX2 and baseline builds differ only in speed.
+//!
+//! ```
+//! use bfqi_ga::learn::{Learner, Regressor, Rows};
+//! use bfqi_ga::learn::mlp::{Activation, MlpParams};
+//!
+//! let x: Vec<f64> = (0..500).map(|i| i as f64 / 100.0).collect();
+//! let y: Vec<f64> = x.iter().map(|v| 2.0 * v - 1.0).collect();
+//! let params = MlpParams { hidden: vec![8], activation: Activation::Tanh, max_epochs: 200, ..Default::default() };
+//! let (model, info) = params.fit(Rows::new(&x, 1).unwrap(), &y, 7).unwrap();
+//! assert!(info.epochs >= 1);
+//! assert!(model.predict_row(&[2.5]).is_finite());
+//! ```
+
+mod kernels;
+mod lanes;
+mod net;
+mod optim;
+mod shuffle;
+#[cfg(test)]
+mod tests;
+
+pub use net::Shape;
+pub use optim::{EarlyStopping, RmsProp};
+
+use super::{FitInfo, Learner, Regressor, Rows, StopReason, check_training_data};
+use crate::error::{Error, Result, ensure};
+use crate::rng::{stream, uniform};
+use lanes::{Isa, LANES, V};
+use net::{Chunks, RowNet, TrainSet, Work};
+use serde::{Deserialize, Serialize};
+use shuffle::shuffle;
+
+/// Hidden-layer activation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Activation {
+    /// Logistic `1 / (1 + e^−x)`.
+    Sigmoid,
+    /// Hyperbolic tangent.
+    Tanh,
+    /// `max(x, 0)`.
+    Relu,
+}
+
+/// Hyperparameters of the MLP (SPEC §3); the defaults are the thesis's bicycle network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MlpParams {
+    /// Widths of the hidden layers, input side first.
+    pub hidden: Vec<usize>,
+    /// Activation of every hidden unit (the output is linear).
+    pub activation: Activation,
+    /// RMSProp learning rate.
+    pub learning_rate: f64,
+    /// RMSProp decay of the squared-gradient average.
+    pub rho: f64,
+    /// RMSProp denominator offset.
+    pub epsilon: f64,
+    /// Rows per mini-batch (the last batch of an epoch may be smaller).
+    pub batch_size: usize,
+    /// Epoch cap.
+    pub max_epochs: usize,
+    /// Fraction of the rows, taken from the end, held out for early stopping.
+    pub validation_fraction: f64,
+    /// Minimum decrease of the validation loss that counts as an improvement.
+    pub delta_min: f64,
+    /// Epochs without improvement tolerated; the next one stops training.
+    pub patience: usize,
+}
+
+impl Default for MlpParams {
+    fn default() -> Self {
+        MlpParams {
+            hidden: vec![10, 10],
+            activation: Activation::Sigmoid,
+            learning_rate: 1e-3,
+            rho: 0.9,
+            epsilon: 1e-8,
+            batch_size: 2000,
+            max_epochs: 5000,
+            validation_fraction: 0.1,
+            delta_min: 0.011,
+            patience: 75,
+        }
+    }
+}
+
+/// Training and validation loss (MSE on standardized targets) after one epoch.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EpochLoss {
+    /// Mean over the epoch's batches of each batch's loss, weighted by batch size (as Keras logs it).
+    pub train: f64,
+    /// Loss on the validation rows with the weights at the end of the epoch.
+    pub val: f64,
+}
+
+impl MlpParams {
+    /// [`Learner::fit`], also returning the losses of every epoch run.
+    pub fn fit_with_losses(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo, Vec<EpochLoss>)> {
+        self.fit_on(Isa::detect(), x, y, seed)
+    }
+
+    /// The fit, with the kernels compiled for `isa` (tests compare them).
+    fn fit_on(&self, isa: Isa, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo, Vec<EpochLoss>)> {
+        self.check()?;
+        check_training_data(x, y)?;
+        let n = x.n_rows();
+        let split = split_point(n, self.validation_fraction);
+        if split == 0 || split >= n {
+            return Err(Error::Data(format!(
+                "{n} rows with validation_fraction {} leave {split} training and {} validation rows; both need ≥ 1",
+                self.validation_fraction,
+                n - split.min(n)
+            )));
+        }
+        let n_in = x.n_cols();
+        if n > u32::MAX as usize || !TrainSet::fits(split, n_in) {
+            return Err(Error::Data(format!(
+                "{n} rows of {n_in} inputs are more than the MLP's 32-bit row indexing supports"
+            )));
+        }
+        let x_scale: Vec<Standardizer> = (0..n_in).map(|k| Standardizer::fit((0..n).map(|i| x.row(i)[k]))).collect();
+        let y_scale = Standardizer::fit(y.iter().copied());
+        let shape = Shape::new(n_in, &self.hidden, self.activation);
+        let mut params = glorot_init(&shape, seed);
+
+        let train =
+            TrainSet::new(
+                split,
+                n_in,
+                |r, k| {
+                    if k < n_in { x_scale[k].apply(x.row(r)[k]) } else { y_scale.apply(y[r]) }
+                },
+            );
+        let val =
+            Chunks::new(n - split, n_in, |r, k| x_scale[k].apply(x.row(split + r)[k]), |r| y_scale.apply(y[split + r]));
+
+        let mut work = Work::new(&shape);
+        let mut opt = RmsProp::new(shape.n_params(), self.learning_rate, self.rho, self.epsilon);
+        let mut rule = EarlyStopping::new(self.delta_min, self.patience);
+        let mut rng = stream(seed, "mlp/shuffle", &[]);
+        let mut perm = vec![0u32; split];
+        let mut losses = Vec::with_capacity(self.max_epochs.min(10_000));
+        let mut info = FitInfo { epochs: 0, stop: StopReason::MaxEpochs };
+        for epoch in 1..=self.max_epochs {
+            shuffle(&mut perm, &mut rng);
+            let train_sse = net::epoch(isa, &shape, &mut params, &mut opt, &train, &perm, self.batch_size, &mut work);
+            let val_sse = net::sse(isa, &shape, &params, &val, &mut work);
+            let loss = EpochLoss { train: train_sse / split as f64, val: val_sse / (n - split) as f64 };
+            losses.push(loss);
+            info.epochs = epoch;
+            if !loss.train.is_finite() || !loss.val.is_finite() || params.iter().any(|p| !p.is_finite()) {
+                info.stop = StopReason::NonFinite;
+                break;
+            }
+            if rule.update(loss.val) {
+                info.stop = StopReason::EarlyStopping;
+                break;
+            }
+        }
+        let row = RowNet::new(&shape, &params);
+        Ok((Mlp { shape, params, x_scale, y_scale, row }, info, losses))
+    }
+}
+
+impl Learner for MlpParams {
+    type Model = Mlp;
+
+    fn check(&self) -> Result<()> {
+        ensure(
+            !self.hidden.is_empty() && self.hidden.iter().all(|&w| w >= 1),
+            "hidden",
+            format!("{:?}", self.hidden),
+            "must list at least one layer, each of width ≥ 1",
+        )?;
+        let lr = self.learning_rate;
+        ensure(lr.is_finite() && lr > 0.0, "learning_rate", lr, "must be finite and > 0")?;
+        ensure(self.rho.is_finite() && (0.0..1.0).contains(&self.rho), "rho", self.rho, "must be in [0, 1)")?;
+        ensure(self.epsilon.is_finite() && self.epsilon > 0.0, "epsilon", self.epsilon, "must be finite and > 0")?;
+        ensure(self.batch_size >= 1, "batch_size", self.batch_size, "must be ≥ 1")?;
+        ensure(self.max_epochs >= 1, "max_epochs", self.max_epochs, "must be ≥ 1")?;
+        let f = self.validation_fraction;
+        ensure(f.is_finite() && f > 0.0 && f < 1.0, "validation_fraction", f, "must be in (0, 1)")?;
+        ensure(
+            self.delta_min.is_finite() && self.delta_min >= 0.0,
+            "delta_min",
+            self.delta_min,
+            "must be finite and ≥ 0",
+        )
+    }
+
+    fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo)> {
+        self.fit_with_losses(x, y, seed).map(|(m, info, _)| (m, info))
+    }
+}
+
+/// A z-score: `(v − mean) · (1 / std)` with the population std, and std 1 for a constant column.
+/// (Multiplying by the reciprocal, in f64, keeps prediction cheap; fit and predict share it.)
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Standardizer {
+    /// Mean of the fitted values.
+    pub mean: f64,
+    /// Population standard deviation, or 1 if the values are all equal.
+    pub std: f64,
+    inv_std: f64,
+}
+
+impl Standardizer {
+    /// The z-score with this mean and standard deviation (> 0).
+    pub fn new(mean: f64, std: f64) -> Standardizer {
+        Standardizer { mean, std, inv_std: 1.0 / std }
+    }
+
+    /// Fits on `values` (at least one).
+    pub fn fit(values: impl Iterator<Item = f64> + Clone) -> Standardizer {
+        let (mut n, mut sum, mut lo, mut hi) = (0usize, 0.0, f64::INFINITY, f64::NEG_INFINITY);
+        for v in values.clone() {
+            n += 1;
+            sum += v;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        if lo == hi {
+            // Exactly constant: every z-score is exactly 0 (the sum above may round the mean).
+            return Standardizer::new(lo, 1.0);
+        }
+        let mean = sum / n as f64;
+        let var = values.map(|v| (v - mean) * (v - mean)).sum::<f64>() / n as f64;
+        let std = var.sqrt();
+        Standardizer::new(mean, if std > 0.0 { std } else { 1.0 })
+    }
+
+    /// The z-score of `v`, as the network sees it.
+    #[inline]
+    pub fn apply(&self, v: f64) -> f32 {
+        ((v - self.mean) * self.inv_std) as f32
+    }
+
+    /// The raw value of the standardized `z`.
+    #[inline]
+    pub fn invert(&self, z: f32) -> f64 {
+        z as f64 * self.std + self.mean
+    }
+}
+
+/// Rows before the validation tail, as Keras computes it: `int(n · (1 − validation_split))`.
+fn split_point(n: usize, validation_fraction: f64) -> usize {
+    (n as f64 * (1.0 - validation_fraction)).floor() as usize
+}
+
+/// Glorot-uniform weights (each in ±√(6 / (fan_in + fan_out)), drawn layer by layer in parameter
+/// order from the stream `(seed, "mlp/init")`) and zero biases.
+pub fn glorot_init(shape: &Shape, seed: u64) -> Vec<f32> {
+    let mut rng = stream(seed, "mlp/init", &[]);
+    let mut p = vec![0.0; shape.n_params()];
+    let w = shape.widths();
+    for l in 0..shape.n_layers() {
+        let limit = (6.0 / (w[l] + w[l + 1]) as f64).sqrt();
+        for v in &mut p[shape.weights_range(l)] {
+            *v = uniform(&mut rng, -limit, limit) as f32;
+        }
+    }
+    p
+}
+
+/// The MSE of the network `params` on the rows `x` (row-major, `shape.n_inputs()` standardized
+/// values per row) against `y`, and its gradient with respect to `params` written to `grad`:
+/// exactly what one training batch of these rows computes (for checking against finite
+/// differences).
+pub fn loss_and_gradient(shape: &Shape, params: &[f32], x: &[f32], y: &[f32], grad: &mut [f32]) -> f64 {
+    loss_and_gradient_on(Isa::detect(), shape, params, x, y, grad)
+}
+
+fn loss_and_gradient_on(isa: Isa, shape: &Shape, params: &[f32], x: &[f32], y: &[f32], grad: &mut [f32]) -> f64 {
+    let n_in = shape.n_inputs();
+    assert!(x.len() == y.len() * n_in && params.len() == shape.n_params() && grad.len() == params.len());
+    assert!(!y.is_empty() && y.len() <= u32::MAX as usize);
+    let set = TrainSet::new(y.len(), n_in, |r, k| if k < n_in { x[r * n_in + k] } else { y[r] });
+    let idx: Vec<u32> = (0..y.len() as u32).collect();
+    let mut work = Work::new(shape);
+    let sse = net::gradient(isa, shape, params, &set, &idx, &mut work);
+    grad.copy_from_slice(work.grad());
+    sse / y.len() as f64
+}
+
+/// Which kernel build fits and predictions use on this CPU: `avx512`, `avx2` or `portable`.
+pub fn kernel_isa() -> &'static str {
+    Isa::detect().name()
+}
+
+/// Blocks of 16 units that [`Mlp::predict_row`] evaluates on the stack (layers up to 64 wide).
+const STACK_BLOCKS: usize = 4;
+
+/// A fitted MLP: the network and the standardization it was trained with.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mlp {
+    shape: Shape,
+    params: Vec<f32>,
+    x_scale: Vec<Standardizer>,
+    y_scale: Standardizer,
+    row: RowNet,
+}
+
+impl Mlp {
+    /// The network's shape.
+    pub fn shape(&self) -> &Shape {
+        &self.shape
+    }
+
+    /// The flat parameter vector (layout in [`Shape`]).
+    pub fn params(&self) -> &[f32] {
+        &self.params
+    }
+
+    /// Layer `l`'s weights, `widths[l+1] × widths[l]` row-major.
+    pub fn weights(&self, l: usize) -> &[f32] {
+        &self.params[self.shape.weights_range(l)]
+    }
+
+    /// Layer `l`'s biases.
+    pub fn biases(&self, l: usize) -> &[f32] {
+        &self.params[self.shape.bias_range(l)]
+    }
+
+    /// The standardization of each input.
+    pub fn input_scaling(&self) -> &[Standardizer] {
+        &self.x_scale
+    }
+
+    /// The standardization of the target.
+    pub fn target_scaling(&self) -> Standardizer {
+        self.y_scale
+    }
+
+    fn eval_row(&self, isa: Isa, row: &[f64], a: &mut [V], b: &mut [V]) -> f64 {
+        for (i, (&v, s)) in row.iter().zip(&self.x_scale).enumerate() {
+            a[i / LANES].0[i % LANES] = s.apply(v);
+        }
+        self.y_scale.invert(net::predict_one(isa, &self.row, a, b))
+    }
+
+    fn predict_row_on(&self, isa: Isa, row: &[f64]) -> f64 {
+        assert_eq!(row.len(), self.n_inputs(), "row length");
+        if self.row.blocks() <= STACK_BLOCKS {
+            let (mut a, mut b) = ([V::ZERO; STACK_BLOCKS], [V::ZERO; STACK_BLOCKS]);
+            self.eval_row(isa, row, &mut a, &mut b)
+        } else {
+            let (mut a, mut b) = (vec![V::ZERO; self.row.blocks()], vec![V::ZERO; self.row.blocks()]);
+            self.eval_row(isa, row, &mut a, &mut b)
+        }
+    }
+
+    fn predict_into_on(&self, isa: Isa, x: Rows<'_>, out: &mut [f64]) {
+        assert_eq!(x.n_cols(), self.n_inputs(), "columns");
+        assert_eq!(out.len(), x.n_rows(), "output length");
+        let mut work = Work::new(&self.shape);
+        let mut z = vec![0f32; out.len()];
+        net::predict(isa, &self.shape, &self.params, x.data(), &self.x_scale, &mut work, &mut z);
+        for (o, &v) in out.iter_mut().zip(&z) {
+            *o = self.y_scale.invert(v);
+        }
+    }
+}
+
+impl Regressor for Mlp {
+    fn n_inputs(&self) -> usize {
+        self.shape.n_inputs()
+    }
+
+    fn predict_row(&self, row: &[f64]) -> f64 {
+        self.predict_row_on(Isa::detect(), row)
+    }
+
+    fn predict_into(&self, x: Rows<'_>, out: &mut [f64]) {
+        self.predict_into_on(Isa::detect(), x, out)
+    }
+}
