@@ -14,13 +14,13 @@ use crate::env::Env;
 use crate::error::Result;
 use crate::eval::{Score, evaluate};
 use crate::learn::actions::{Encoded, QModel, argmax};
-use crate::learn::{Learner, StopReason};
+use crate::learn::{Learner, LearnerConfig, StopReason};
 use crate::rng;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Which algorithm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Algorithm {
     /// Fitted Q-Iteration: Q_k = S(T̂Q_{k−1}).
@@ -174,17 +174,17 @@ impl<'a, L: Learner> Fqi<'a, L> {
         &self.members
     }
 
-    /// Q_k(obs, a_j) for every action, summing the members.
-    pub fn q_values(&self, obs: &[f64], row: &mut [f64], out: &mut [f64]) {
+    /// Q_k(obs, a_j) for every action, summing the members; `scratch` holds at least |A| values.
+    pub fn q_values(&self, obs: &[f64], scratch: &mut [f64], out: &mut [f64]) {
         out.fill(0.0);
         for m in &self.members {
-            m.add_q_values(obs, &self.enc.actions, row, out);
+            m.add_q_values(obs, &self.enc.actions, scratch, out);
         }
     }
 
     /// The greedy policy's score under the environment's evaluation protocol.
     pub fn evaluate(&self) -> Score {
-        let mut row = vec![0.0; self.enc.obs_dim + 1];
+        let mut row = vec![0.0; self.enc.actions.len()];
         let mut q = vec![0.0; self.enc.actions.len()];
         let mut policy = |obs: &[f64]| {
             self.q_values(obs, &mut row, &mut q);
@@ -295,6 +295,25 @@ impl<'a, L: Learner> Fqi<'a, L> {
 fn add(acc: &mut [f64], x: &[f64]) {
     for (a, b) in acc.iter_mut().zip(x) {
         *a += b;
+    }
+}
+
+/// Runs FQI or B-FQI with the learner a [`LearnerConfig`] names, on one dataset already laid out for
+/// its action encoding. This is the unit of work of `run`, `compare` and the GA's fitness.
+#[allow(clippy::too_many_arguments)]
+pub fn run_with(
+    env: &dyn Env,
+    data: &Dataset,
+    enc: &Encoded,
+    learner: &LearnerConfig,
+    settings: FqiSettings,
+    fit_seed: u64,
+    eval_seed: u64,
+    progress: impl FnMut(&IterationRecord),
+) -> Result<RunRecord> {
+    match learner {
+        LearnerConfig::ExtraTrees(p) => Fqi::new(env, data, enc, p, settings, fit_seed, eval_seed).run(progress),
+        LearnerConfig::Mlp(p) => Fqi::new(env, data, enc, p, settings, fit_seed, eval_seed).run(progress),
     }
 }
 

@@ -1,0 +1,207 @@
+//! Experiments: FQI / B-FQI over several datasets (`bfqi-ga run`), the unit of every comparison.
+//!
+//! Dataset `i` of a run is comparison dataset `i` of the master seed; member fits draw from
+//! `(seed, "fit", i)` and evaluation episodes from `(seed, "eval", i)`. Datasets run in parallel and
+//! the results do not depend on the thread count.
+
+use crate::dataset::{self, dataset_seed};
+use crate::env::EnvConfig;
+use crate::error::{Result, ensure};
+use crate::eval::eval_seed;
+use crate::fqi::{self, Algorithm, FqiSettings, IterationRecord, RunRecord};
+use crate::learn::LearnerConfig;
+use crate::learn::actions::{ActionEncoding, Encoded};
+use crate::report::stats::{Summary, summarize};
+use crate::rng;
+use crate::spec::Preset;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Everything that determines a run's results.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// The environment.
+    pub env: EnvConfig,
+    /// FQI or B-FQI.
+    pub algorithm: Algorithm,
+    /// The learner.
+    pub learner: LearnerConfig,
+    /// How actions reach the learner.
+    pub actions: ActionEncoding,
+    /// K.
+    pub iterations: usize,
+    /// Evaluate every this many iterations (and at the last).
+    pub eval_every: usize,
+    /// Episodes per dataset.
+    pub episodes: usize,
+    /// Number of datasets.
+    pub datasets: usize,
+    /// Master seed.
+    pub seed: u64,
+}
+
+impl RunConfig {
+    /// A run of `algorithm` with a preset's settings.
+    pub fn from_preset(env: EnvConfig, seed: u64, algorithm: Algorithm, p: &Preset) -> Self {
+        RunConfig {
+            env,
+            algorithm,
+            learner: p.learner.clone(),
+            actions: p.actions,
+            iterations: p.iterations,
+            eval_every: p.eval_every,
+            episodes: p.episodes,
+            datasets: p.datasets,
+            seed,
+        }
+    }
+
+    /// Validates every setting; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        self.env.validate()?;
+        self.learner.check()?;
+        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+        ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
+        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
+        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")
+    }
+
+    fn settings(&self) -> FqiSettings {
+        FqiSettings { algorithm: self.algorithm, iterations: self.iterations, eval_every: self.eval_every }
+    }
+}
+
+/// The record of one dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DatasetResult {
+    /// Dataset index.
+    pub dataset: usize,
+    /// Transitions in the dataset.
+    pub transitions: usize,
+    /// Per-iteration records.
+    #[serde(flatten)]
+    pub record: RunRecord,
+}
+
+/// Statistics over datasets at one iteration (diverged datasets excluded).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IterationSummary {
+    /// 1-based iteration.
+    pub iteration: usize,
+    /// Score over the datasets evaluated at this iteration.
+    pub score: Option<Summary>,
+    /// Steps survived.
+    pub steps: Option<Summary>,
+    /// Bellman residual.
+    pub bellman_residual: Option<Summary>,
+    /// Datasets that diverged at or before this iteration.
+    pub diverged: usize,
+}
+
+/// A whole run: the configuration, every dataset's records and the summary.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunReport {
+    /// What was run.
+    pub config: RunConfig,
+    /// One entry per dataset, in index order.
+    pub datasets: Vec<DatasetResult>,
+    /// One entry per iteration.
+    pub summary: Vec<IterationSummary>,
+}
+
+/// Runs the configured algorithm on dataset `index` (collecting it first).
+pub fn run_dataset(cfg: &RunConfig, index: usize, progress: impl FnMut(&IterationRecord)) -> Result<DatasetResult> {
+    let env = cfg.env.env();
+    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, "compare", index))?;
+    let enc = Encoded::new(&data, env.actions(), cfg.actions)?;
+    let fit_seed = rng::derive(cfg.seed, "fit", &[index as u64]);
+    let record =
+        fqi::run_with(env, &data, &enc, &cfg.learner, cfg.settings(), fit_seed, eval_seed(cfg.seed, index), progress)?;
+    Ok(DatasetResult { dataset: index, transitions: data.len(), record })
+}
+
+/// Runs every dataset of `cfg` in parallel. `progress(dataset, record)` is called after each
+/// iteration of each dataset (from worker threads).
+pub fn run(cfg: &RunConfig, progress: &(dyn Fn(usize, &IterationRecord) + Sync)) -> Result<RunReport> {
+    cfg.validate()?;
+    let datasets: Vec<DatasetResult> =
+        (0..cfg.datasets).into_par_iter().map(|i| run_dataset(cfg, i, |r| progress(i, r))).collect::<Result<_>>()?;
+    let summary = summarize_iterations(&datasets, cfg.iterations);
+    Ok(RunReport { config: cfg.clone(), datasets, summary })
+}
+
+/// Per-iteration statistics over datasets.
+pub fn summarize_iterations(datasets: &[DatasetResult], iterations: usize) -> Vec<IterationSummary> {
+    (1..=iterations)
+        .map(|k| {
+            let at: Vec<&IterationRecord> =
+                datasets.iter().filter_map(|d| d.record.iterations.iter().find(|r| r.iteration == k)).collect();
+            let pick = |f: fn(&IterationRecord) -> Option<f64>| -> Option<Summary> {
+                summarize(&at.iter().filter_map(|r| f(r)).collect::<Vec<_>>())
+            };
+            IterationSummary {
+                iteration: k,
+                score: pick(|r| r.score),
+                steps: pick(|r| r.steps),
+                bellman_residual: pick(|r| Some(r.bellman_residual)),
+                diverged: datasets
+                    .iter()
+                    .filter(|d| d.record.diverged.as_ref().is_some_and(|v| v.iteration <= k))
+                    .count(),
+            }
+        })
+        .collect()
+}
+
+impl RunReport {
+    /// The per-dataset, per-iteration records as CSV rows (with a header).
+    pub fn csv(&self) -> String {
+        let mut s = String::from(
+            "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds\n",
+        );
+        let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:?}"));
+        for d in &self.datasets {
+            for r in &d.record.iterations {
+                s.push_str(&format!(
+                    "{},{},{},{},{:?},{},{:?},{:?},{:?}\n",
+                    d.dataset,
+                    r.iteration,
+                    opt(r.score),
+                    opt(r.steps),
+                    r.bellman_residual,
+                    r.epochs.map_or(String::new(), |e| e.to_string()),
+                    r.fit_seconds,
+                    r.predict_seconds,
+                    r.eval_seconds
+                ));
+            }
+        }
+        s
+    }
+
+    /// A readable per-iteration table: mean ± 95 % interval over datasets.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "{:>5}  {:>22}  {:>20}  {:>12}  {:>8}\n",
+            "iter", "score (mean ± 95%)", "steps (mean ± 95%)", "residual", "diverged"
+        );
+        let pm = |v: &Option<Summary>, prec: usize| {
+            v.map_or("—".to_string(), |x| format!("{:.prec$} ± {:.prec$}", x.mean, x.ci95, prec = prec))
+        };
+        for it in &self.summary {
+            if it.score.is_none() && it.iteration != self.config.iterations {
+                continue;
+            }
+            s.push_str(&format!(
+                "{:>5}  {:>22}  {:>20}  {:>12}  {:>8}\n",
+                it.iteration,
+                pm(&it.score, 4),
+                pm(&it.steps, 1),
+                it.bellman_residual.map_or("—".into(), |r| format!("{:.5}", r.mean)),
+                it.diverged
+            ));
+        }
+        s
+    }
+}

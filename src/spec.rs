@@ -1,0 +1,390 @@
+//! Spec files (`searches/<env>.json`): every default of SPEC §1–§6 lives in one of these, never deep
+//! in the code. A spec is validated on load; an error names the file, the field and what is allowed.
+//!
+//! `bfqi-ga <cmd> bicycle` reads `searches/bicycle.json` from the working directory, or the copy
+//! built into the binary (the same file) when there is none; `bfqi-ga <cmd> path/to/spec.json` reads
+//! that file.
+
+use crate::env::EnvConfig;
+use crate::error::{Error, Result, ensure};
+use crate::fqi::Algorithm;
+use crate::ga::chromosome::GeneRanges;
+use crate::ga::operators::GaParams;
+use crate::learn::actions::ActionEncoding;
+use crate::learn::mlp::MlpParams;
+use crate::learn::{Learner, LearnerConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The settings of one original experiment (a row of the SPEC §6 table): what `bfqi-ga run` and
+/// `bfqi-ga compare` use unless flags override them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Preset {
+    /// K, FQI iterations.
+    pub iterations: usize,
+    /// Number of datasets results are averaged over.
+    pub datasets: usize,
+    /// Episodes per dataset.
+    pub episodes: usize,
+    /// How actions reach the learner.
+    pub actions: ActionEncoding,
+    /// Evaluate the greedy policy every this many iterations (and at the last).
+    #[serde(default = "one")]
+    pub eval_every: usize,
+    /// The learner and its settings.
+    pub learner: LearnerConfig,
+    /// Complexities of the complexity analysis: max depths, or units of one hidden layer.
+    #[serde(default)]
+    pub complexities: Vec<usize>,
+    /// The sample analysis (thesis §4.6).
+    #[serde(default)]
+    pub samples: Option<SampleSweep>,
+}
+
+/// The sample analysis: one complexity per algorithm, scored against dataset size.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SampleSweep {
+    /// Complexity of FQI's learner.
+    pub fqi: usize,
+    /// Complexity of B-FQI's learner.
+    pub bfqi: usize,
+    /// Datasets per size.
+    pub datasets: usize,
+    /// Dataset sizes, in episodes.
+    pub sizes: Vec<usize>,
+}
+
+fn one() -> usize {
+    1
+}
+
+impl Preset {
+    fn validate(&self) -> Result<()> {
+        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
+        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
+        ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
+        ensure(
+            self.complexities.iter().all(|&c| c >= 1),
+            "complexities",
+            format!("{:?}", self.complexities),
+            "must all be ≥ 1",
+        )?;
+        if let Some(s) = &self.samples {
+            ensure(
+                s.fqi >= 1 && s.bfqi >= 1,
+                "samples",
+                format!("fqi {} bfqi {}", s.fqi, s.bfqi),
+                "complexities must be ≥ 1",
+            )?;
+            ensure(s.datasets >= 1, "samples.datasets", s.datasets, "must be ≥ 1")?;
+            ensure(
+                !s.sizes.is_empty() && s.sizes.iter().all(|&n| n >= 1),
+                "samples.sizes",
+                format!("{:?}", s.sizes),
+                "must be non-empty, each ≥ 1",
+            )?;
+        }
+        self.learner.check()
+    }
+}
+
+/// The original experiments' settings per learner.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiments {
+    /// Extra-Trees.
+    pub et: Preset,
+    /// MLP.
+    pub mlp: Preset,
+}
+
+/// When a search stops.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StopRules {
+    /// Generations to evaluate.
+    pub generations: usize,
+    /// Wall-clock budget in hours (the search stops cleanly between units and can be resumed).
+    pub max_hours: Option<f64>,
+    /// Stop after this many generations without improvement of the best fitness.
+    pub stall_generations: Option<usize>,
+}
+
+/// Everything a genetic search needs beyond the environment (SPEC §5).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchSpec {
+    /// Search datasets each chromosome is scored on (seeds disjoint from comparison datasets).
+    pub datasets: usize,
+    /// Episodes per search dataset.
+    pub episodes: usize,
+    /// FQI iterations K; fitness is the score after the last.
+    pub iterations: usize,
+    /// The algorithm whose network is tuned (the thesis tunes FQI, which is pessimistic for B-FQI).
+    pub algorithm: Algorithm,
+    /// How actions reach the network.
+    pub actions: ActionEncoding,
+    /// The tuned network; its activation, delta_min and patience are replaced by the genes'.
+    pub network: MlpParams,
+    /// Gene ranges.
+    pub genes: GeneRanges,
+    /// GA parameters.
+    pub ga: GaParams,
+    /// Stop rules.
+    pub stop: StopRules,
+}
+
+impl SearchSpec {
+    fn validate(&self) -> Result<()> {
+        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
+        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
+        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+        self.network.check().map_err(|e| e.within("network"))?;
+        self.genes.validate().map_err(|e| e.within("genes"))?;
+        let ga = &self.ga;
+        ensure(ga.population >= 2, "ga.population", ga.population, "must be ≥ 2")?;
+        for (f, v) in [("ga.elitism", ga.elitism), ("ga.parent_pool", ga.parent_pool)] {
+            ensure((0.0..=1.0).contains(&v), f, v, "must be in [0, 1]")?;
+        }
+        ensure(ga.n_elites() < ga.population, "ga.elitism", ga.elitism, "must leave room for at least one child")?;
+        for (f, v) in [("ga.mutation", ga.mutation), ("ga.gene_resampling", ga.gene_resampling)] {
+            ensure((0.0..=1.0).contains(&v), f, v, "must be in [0, 1]")?;
+        }
+        ensure(self.stop.generations >= 1, "stop.generations", self.stop.generations, "must be ≥ 1")?;
+        if let Some(h) = self.stop.max_hours {
+            ensure(h.is_finite() && h > 0.0, "stop.max_hours", h, "must be > 0")?;
+        }
+        if let Some(s) = self.stop.stall_generations {
+            ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
+        }
+        Ok(())
+    }
+}
+
+/// A spec file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Spec {
+    /// The environment; fields left out take their SPEC defaults.
+    pub env: EnvConfig,
+    /// Master seed of every stream (SPEC §7).
+    pub seed: u64,
+    /// Settings of the original experiments.
+    pub experiments: Experiments,
+    /// The genetic search.
+    pub search: SearchSpec,
+}
+
+/// Built-in copies of the shipped presets (overlays).
+const BUILTIN_PRESETS: [(&str, &str); 2] = [
+    ("quick", include_str!("../searches/presets/quick.json")),
+    ("thesis-text-ranges", include_str!("../searches/presets/thesis-text-ranges.json")),
+];
+
+/// Applies a JSON merge patch (RFC 7386): objects merge key by key, anything else replaces, `null`
+/// removes. Keys starting with `_` (comments) are skipped.
+pub fn merge_patch(base: &mut serde_json::Value, patch: &serde_json::Value) {
+    use serde_json::Value;
+    match (base, patch) {
+        (Value::Object(b), Value::Object(p)) => {
+            for (k, v) in p {
+                if k.starts_with('_') {
+                    continue;
+                }
+                if v.is_null() {
+                    b.remove(k);
+                } else {
+                    merge_patch(b.entry(k.clone()).or_insert(Value::Null), v);
+                }
+            }
+        }
+        (b, p) => *b = strip_comments(p.clone()),
+    }
+}
+
+/// Removes `_`-prefixed keys (comments) at every level.
+fn strip_comments(v: serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Object(m) => Value::Object(
+            m.into_iter().filter(|(k, _)| !k.starts_with('_')).map(|(k, v)| (k, strip_comments(v))).collect(),
+        ),
+        Value::Array(a) => Value::Array(a.into_iter().map(strip_comments).collect()),
+        other => other,
+    }
+}
+
+/// Reads a preset overlay: a built-in name (`quick`, `thesis-text-ranges`), `searches/presets/<name>.json`,
+/// or a path.
+pub fn load_preset(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
+    let local = PathBuf::from(format!("searches/presets/{name_or_path}.json"));
+    let path = PathBuf::from(name_or_path);
+    let (text, origin) = if local.is_file() {
+        (std::fs::read_to_string(&local).map_err(|e| Error::io(&local, e))?, local)
+    } else if path.is_file() {
+        (std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?, path)
+    } else if let Some((n, t)) = BUILTIN_PRESETS.iter().find(|(n, _)| *n == name_or_path) {
+        (t.to_string(), PathBuf::from(format!("<built-in searches/presets/{n}.json>")))
+    } else {
+        let names: Vec<&str> = BUILTIN_PRESETS.iter().map(|(n, _)| *n).collect();
+        return Err(Error::invalid("preset", name_or_path, format!("must be one of {} or a file", names.join(", "))));
+    };
+    let v = serde_json::from_str(&text).map_err(|e| file_error(&origin, e.to_string()))?;
+    Ok((v, origin))
+}
+
+/// Built-in copies of the shipped spec files, so the binary works from any directory.
+const BUILTIN: [(&str, &str); 3] = [
+    ("pendulum", include_str!("../searches/pendulum.json")),
+    ("cartpole", include_str!("../searches/cartpole.json")),
+    ("bicycle", include_str!("../searches/bicycle.json")),
+];
+
+impl Spec {
+    /// Validates every field; the error names the field path.
+    pub fn validate(&self) -> Result<()> {
+        self.env.validate()?;
+        self.experiments.et.validate().map_err(|e| e.within("experiments.et"))?;
+        self.experiments.mlp.validate().map_err(|e| e.within("experiments.mlp"))?;
+        self.search.validate().map_err(|e| e.within("search"))
+    }
+
+    /// Parses and validates spec text; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &Path) -> Result<Spec> {
+        Self::from_value(Self::parse_value(text, origin)?, origin)
+    }
+
+    /// Parses spec text into JSON (comments removed), without validating it as a spec.
+    pub fn parse_value(text: &str, origin: &Path) -> Result<serde_json::Value> {
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_error(origin, e.to_string()))?;
+        Ok(strip_comments(value))
+    }
+
+    /// The JSON text of `bicycle` (→ `searches/bicycle.json` or the built-in copy) or of a file,
+    /// with its origin; for callers that patch it before validating.
+    pub fn resolve_value(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
+        if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            let local = PathBuf::from(format!("searches/{name}.json"));
+            if local.is_file() {
+                let t = std::fs::read_to_string(&local).map_err(|e| Error::io(&local, e))?;
+                return Ok((Self::parse_value(&t, &local)?, local));
+            }
+            let origin = PathBuf::from(format!("<built-in searches/{name}.json>"));
+            return Ok((Self::parse_value(text, &origin)?, origin));
+        }
+        let path = PathBuf::from(name_or_path);
+        if path.is_file() {
+            let t = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+            return Ok((Self::parse_value(&t, &path)?, path));
+        }
+        Err(Error::UnknownEnv {
+            name: name_or_path.to_string(),
+            valid: format!("{} (or the path of a spec file)", crate::env::NAMES.join(", ")),
+        })
+    }
+
+    /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.
+    pub fn hash(&self) -> String {
+        let text = serde_json::to_string(self).expect("a spec serialises");
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in text.bytes() {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+        format!("{h:016x}")
+    }
+
+    /// Deserialises and validates a JSON value; `origin` names it in errors.
+    pub fn from_value(value: serde_json::Value, origin: &Path) -> Result<Spec> {
+        let spec: Spec = serde_path_to_error::deserialize(value).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            file_error(origin, if path == "." { inner } else { format!("field {path}: {inner}") })
+        })?;
+        spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
+        Ok(spec)
+    }
+
+    /// Reads and validates a spec file.
+    pub fn load(path: &Path) -> Result<Spec> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    /// Resolves `bicycle` (→ `searches/bicycle.json`, or the built-in copy) or a path to a file.
+    /// Returns the spec and where it came from.
+    pub fn resolve(name_or_path: &str) -> Result<(Spec, PathBuf)> {
+        let (value, origin) = Self::resolve_value(name_or_path)?;
+        Ok((Self::from_value(value, &origin)?, origin))
+    }
+
+    /// The preset of a learner (`et` or `mlp`).
+    pub fn preset(&self, learner: &str) -> Option<&Preset> {
+        match learner {
+            "et" => Some(&self.experiments.et),
+            "mlp" => Some(&self.experiments.mlp),
+            _ => None,
+        }
+    }
+}
+
+fn file_error(path: &Path, message: String) -> Error {
+    Error::File { path: path.to_path_buf(), message }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::env::NAMES;
+
+    #[test]
+    fn shipped_specs_load_and_match_the_spec_table() {
+        for name in NAMES {
+            let (s, _) = Spec::resolve(name).unwrap();
+            assert_eq!(s.env.env().name(), name);
+        }
+        let (b, _) = Spec::resolve("bicycle").unwrap();
+        assert_eq!(b.experiments.et.iterations, 20);
+        assert_eq!(b.experiments.et.learner.complexity(), Some(17));
+        assert_eq!(b.experiments.mlp.iterations, 80);
+        let (c, _) = Spec::resolve("cartpole").unwrap();
+        assert_eq!(c.experiments.et.actions, ActionEncoding::PerAction);
+        assert_eq!(c.experiments.et.iterations, 10);
+    }
+
+    #[test]
+    fn presets_overlay_the_spec() {
+        let (mut v, origin) = Spec::resolve_value("cartpole").unwrap();
+        let (patch, _) = load_preset("thesis-text-ranges").unwrap();
+        merge_patch(&mut v, &patch);
+        let s = Spec::from_value(v, &origin).unwrap();
+        assert_eq!(s.search.genes.b_delta, [3, 15]);
+        assert_eq!(s.search.genes.a_delta, [10, 99], "untouched fields keep their values");
+        let (mut v, _) = Spec::resolve_value("cartpole").unwrap();
+        merge_patch(&mut v, &load_preset("quick").unwrap().0);
+        let s = Spec::from_value(v, &origin).unwrap();
+        assert_eq!((s.search.ga.population, s.search.stop.generations, s.search.stop.stall_generations), (6, 2, None));
+        assert!(load_preset("nonesuch").unwrap_err().to_string().contains("quick"));
+    }
+
+    #[test]
+    fn errors_name_file_and_field() {
+        let origin = Path::new("my.json");
+        let base = BUILTIN[2].1;
+        let mut v: serde_json::Value = serde_json::from_str(base).unwrap();
+        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!("many");
+        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+        assert!(e.starts_with("my.json: field experiments.et.learner"), "{e}");
+        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(0);
+        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+        assert!(e.contains("experiments.et.learner.n_trees = 0"), "{e}");
+        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(5);
+        v["experiments"]["et"]["iteratons"] = serde_json::json!(5);
+        let e = Spec::from_value(v, origin).unwrap_err().to_string();
+        assert!(e.contains("iteratons"), "{e}");
+        let e = Spec::parse("{ not json", origin).unwrap_err().to_string();
+        assert!(e.starts_with("my.json: "), "{e}");
+    }
+}
