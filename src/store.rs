@@ -37,6 +37,119 @@ fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
 }
 
+/// Reads and parses a JSON file; errors name the file.
+pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| Error::File { path: path.to_path_buf(), message: e.to_string() })
+}
+
+/// Creates a directory and its parents; errors name it.
+pub fn create_dir(path: &Path) -> Result<()> {
+    fs::create_dir_all(path).map_err(|e| Error::io(path, e))
+}
+
+/// The current UTC time as `YYYYMMDD-HHMMSS` (for run ids) and RFC 3339 (for records).
+pub fn now_utc() -> (String, String) {
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
+    // Civil-from-days (Howard Hinnant's algorithm), proleptic Gregorian.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    let (hh, mm, ss) = (rem / 3600, rem % 3600 / 60, rem % 60);
+    (format!("{y:04}{m:02}{d:02}-{hh:02}{mm:02}{ss:02}"), format!("{y:04}-{m:02}-{d:02}T{hh:02}:{mm:02}:{ss:02}Z"))
+}
+
+/// A fresh run directory `root/<prefix><timestamp>` (suffixed `-2`, `-3`, … if taken).
+pub fn new_run_dir(root: &Path, prefix: &str) -> Result<PathBuf> {
+    create_dir(root)?;
+    let (stamp, _) = now_utc();
+    for n in 1.. {
+        let name = if n == 1 { format!("{prefix}{stamp}") } else { format!("{prefix}{stamp}-{n}") };
+        let dir = root.join(name);
+        match fs::create_dir(&dir) {
+            Ok(()) => return Ok(dir),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(Error::io(&dir, e)),
+        }
+    }
+    unreachable!("some suffix is free")
+}
+
+/// An exclusive claim on a run directory, released on drop. A lock left by a process that no longer
+/// exists on this host is taken over.
+#[derive(Debug)]
+pub struct RunLock {
+    path: PathBuf,
+}
+
+fn host() -> String {
+    fs::read_to_string("/proc/sys/kernel/hostname").map(|h| h.trim().to_string()).unwrap_or_default()
+}
+
+impl RunLock {
+    /// Claims `dir`, or explains who holds it.
+    pub fn acquire(dir: &Path) -> Result<RunLock> {
+        let path = dir.join("lock");
+        let me = format!("{} {}", std::process::id(), host());
+        for _ in 0..2 {
+            match fs::OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(mut f) => {
+                    f.write_all(me.as_bytes()).map_err(|e| Error::io(&path, e))?;
+                    return Ok(RunLock { path });
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                    let held = fs::read_to_string(&path).unwrap_or_default();
+                    let mut parts = held.split_whitespace();
+                    let pid: Option<u32> = parts.next().and_then(|p| p.parse().ok());
+                    let their_host = parts.next().unwrap_or("").to_string();
+                    let alive = match pid {
+                        Some(p) if their_host == host() => Path::new(&format!("/proc/{p}")).exists(),
+                        // Another host, or unreadable: assume alive, the user can remove the lock.
+                        _ => true,
+                    };
+                    if alive {
+                        return Err(Error::File {
+                            path: dir.to_path_buf(),
+                            message: format!(
+                                "this run directory is in use by process {} on {} (if that process is gone, remove {})",
+                                pid.map_or("?".into(), |p| p.to_string()),
+                                if their_host.is_empty() { "an unknown host" } else { &their_host },
+                                path.display()
+                            ),
+                        });
+                    }
+                    let _ = fs::remove_file(&path);
+                }
+                Err(e) => return Err(Error::io(&path, e)),
+            }
+        }
+        Err(Error::File { path: dir.to_path_buf(), message: "could not take over a stale lock".into() })
+    }
+
+    /// True when `dir` holds a lock of a live process on this host.
+    pub fn is_held(dir: &Path) -> bool {
+        let Ok(held) = fs::read_to_string(dir.join("lock")) else { return false };
+        let mut parts = held.split_whitespace();
+        match (parts.next().and_then(|p| p.parse::<u32>().ok()), parts.next()) {
+            (Some(p), Some(h)) if h == host() => Path::new(&format!("/proc/{p}")).exists(),
+            _ => true,
+        }
+    }
+}
+
+impl Drop for RunLock {
+    fn drop(&mut self) {
+        let _ = fs::remove_file(&self.path);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -55,6 +168,30 @@ mod tests {
         assert_eq!(fs::read_to_string(&p).unwrap(), "first");
         assert_eq!(fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left behind");
         fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn lock_refuses_a_second_holder_and_is_released() {
+        let dir = std::env::temp_dir().join(format!("bfqi-lock-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let lock = RunLock::acquire(&dir).unwrap();
+        assert!(RunLock::is_held(&dir));
+        let e = RunLock::acquire(&dir).unwrap_err().to_string();
+        assert!(e.contains("in use by process"), "{e}");
+        drop(lock);
+        assert!(!RunLock::is_held(&dir));
+        // A stale lock (a pid that cannot exist) is taken over.
+        fs::write(dir.join("lock"), format!("4294967295 {}", host())).unwrap();
+        drop(RunLock::acquire(&dir).unwrap());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn timestamps_are_well_formed() {
+        let (id, iso) = now_utc();
+        assert_eq!(id.len(), 15);
+        assert!(iso.ends_with('Z') && iso.len() == 20, "{iso}");
+        assert!(id.starts_with("20"), "{id}");
     }
 
     #[test]

@@ -1,0 +1,5 @@
+//! The genetic algorithm of thesis Appendix C (SPEC §5).
+
+pub mod chromosome;
+pub mod operators;
+pub mod search;

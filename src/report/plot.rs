@@ -1,0 +1,327 @@
+//! Plots as PNG and SVG (plotters, with an embedded DejaVu Sans so they render on machines without
+//! system fonts). Files are written atomically.
+
+use crate::error::{Error, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+use std::sync::Once;
+
+static FONT: Once = Once::new();
+
+fn ensure_font() {
+    FONT.call_once(|| {
+        let bytes: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+        for style in [FontStyle::Normal, FontStyle::Bold] {
+            // The font is compiled in and known to be valid.
+            let _ = plotters::style::register_font("sans-serif", style, bytes);
+        }
+    });
+}
+
+/// Pixel size of every PNG (and SVG) we draw.
+pub const SIZE: (u32, u32) = (900, 560);
+
+/// One line of a line chart, optionally with a shaded band (e.g. a 95 % interval).
+#[derive(Debug, Clone)]
+pub struct Series {
+    /// Legend label.
+    pub label: String,
+    /// (x, y) points.
+    pub points: Vec<(f64, f64)>,
+    /// (x, low, high) band around the line.
+    pub band: Vec<(f64, f64, f64)>,
+    /// Palette index.
+    pub color: usize,
+}
+
+fn color(i: usize) -> RGBColor {
+    const P: [RGBColor; 6] = [
+        RGBColor(31, 119, 180),
+        RGBColor(214, 39, 40),
+        RGBColor(44, 160, 44),
+        RGBColor(148, 103, 189),
+        RGBColor(255, 127, 14),
+        RGBColor(127, 127, 127),
+    ];
+    P[i % P.len()]
+}
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::File { path: path.to_path_buf(), message: format!("plotting failed: {e}") }
+}
+
+/// Renders `draw` into `<base>.png` and `<base>.svg`, atomically.
+pub fn render(
+    base: &Path,
+    draw: &dyn Fn(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+    draw_svg: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
+    ensure_font();
+    let png = base.with_extension("png");
+    let tmp =
+        base.with_file_name(format!(".{}.tmp.png", base.file_name().map_or("plot".into(), |n| n.to_string_lossy())));
+    {
+        let root = BitMapBackend::new(&tmp, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&png, e))?;
+        draw(&root)?;
+        root.present().map_err(|e| plot_err(&png, e))?;
+    }
+    std::fs::rename(&tmp, &png).map_err(|e| Error::io(&png, e))?;
+    let svg_path = base.with_extension("svg");
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| plot_err(&svg_path, e))?;
+        draw_svg(&root)?;
+        root.present().map_err(|e| plot_err(&svg_path, e))?;
+    }
+    crate::store::write_atomic(&svg_path, |w| std::io::Write::write_all(w, svg.as_bytes()))
+}
+
+fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
+    let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0).chain(s.band.iter().map(|b| b.0)));
+    let ys = series.iter().flat_map(|s| s.points.iter().map(|p| p.1).chain(s.band.iter().flat_map(|b| [b.1, b.2])));
+    let (mut x0, mut x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+    let (mut y0, mut y1) =
+        ys.filter(|y| y.is_finite()).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| (a.min(y), b.max(y)));
+    if !x0.is_finite() {
+        (x0, x1) = (0.0, 1.0);
+    }
+    if !y0.is_finite() {
+        (y0, y1) = (0.0, 1.0);
+    }
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    let pad = if y1 > y0 { (y1 - y0) * 0.06 } else { y0.abs().max(1.0) * 0.1 };
+    (x0, x1, y0 - pad, y1 + pad)
+}
+
+fn draw_lines<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |err: &dyn std::fmt::Display| Error::Data(format!("plot '{title}': {err}"));
+    let (x0, x1, y0, y1) = bounds(series);
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 22))
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(|x| e(&x))?;
+    // Iterations, depths, units and sizes are whole numbers: label them so.
+    let integer_x = series.iter().flat_map(|s| &s.points).all(|p| p.0.fract() == 0.0);
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .x_label_formatter(&|v| match integer_x {
+            true if (v - v.round()).abs() < 1e-6 => format!("{:.0}", v.round()),
+            true => String::new(),
+            false => format!("{v}"),
+        })
+        .label_style(("sans-serif", 15))
+        .axis_desc_style(("sans-serif", 17))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(|x| e(&x))?;
+    for s in series {
+        let c = color(s.color);
+        if !s.band.is_empty() {
+            let mut poly: Vec<(f64, f64)> = s.band.iter().map(|b| (b.0, b.2)).collect();
+            poly.extend(s.band.iter().rev().map(|b| (b.0, b.1)));
+            chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.18).filled()))).map_err(|x| e(&x))?;
+        }
+        chart
+            .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))
+            .map_err(|x| e(&x))?
+            .label(s.label.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(3)));
+        chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|x| e(&x))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK.mix(0.3))
+        .label_font(("sans-serif", 15))
+        .draw()
+        .map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// A line chart with optional bands, as `<base>.png` and `<base>.svg`.
+pub fn lines(base: &Path, title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Result<()> {
+    render(base, &|a| draw_lines(a, title, x_label, y_label, series), &|a| {
+        draw_lines(a, title, x_label, y_label, series)
+    })
+}
+
+/// One generation's fitness figures (`None` = every individual diverged).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitnessRow {
+    /// 1-based generation.
+    pub generation: usize,
+    /// Best fitness of the generation.
+    pub best: Option<f64>,
+    /// Mean finite fitness of the generation.
+    pub mean: Option<f64>,
+    /// Best fitness so far.
+    pub best_so_far: Option<f64>,
+}
+
+/// `fitness.png` / `fitness.svg` of a search: best and mean fitness per generation, and the best so far.
+pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow]) -> Result<()> {
+    let pick = |f: fn(&FitnessRow) -> Option<f64>| -> Vec<(f64, f64)> {
+        rows.iter().filter_map(|r| f(r).map(|v| (r.generation as f64, v))).collect()
+    };
+    let series = [
+        Series { label: "best of generation".into(), points: pick(|r| r.best), band: vec![], color: 0 },
+        Series { label: "mean of generation".into(), points: pick(|r| r.mean), band: vec![], color: 5 },
+        Series { label: "best so far".into(), points: pick(|r| r.best_so_far), band: vec![], color: 1 },
+    ];
+    lines(&dir.join("fitness"), &format!("GA fitness — {env}"), "generation", "fitness (mean score)", &series)
+}
+
+/// Colour of `t ∈ [0, 1]`: viridis for magnitudes, or blue–white–red for signed differences.
+fn cell_color(t: f64, diverging: bool) -> RGBColor {
+    let t = t.clamp(0.0, 1.0);
+    if diverging {
+        // 0 → blue, 0.5 → white, 1 → red.
+        let (r, g, b) = if t < 0.5 {
+            let u = t / 0.5;
+            (40.0 + 215.0 * u, 90.0 + 165.0 * u, 200.0 + 55.0 * u)
+        } else {
+            let u = (t - 0.5) / 0.5;
+            (255.0 - 40.0 * u, 255.0 - 200.0 * u, 255.0 - 215.0 * u)
+        };
+        RGBColor(r as u8, g as u8, b as u8)
+    } else {
+        use plotters::style::colors::colormaps::ViridisRGB;
+        ViridisRGB::get_color(t)
+    }
+}
+
+/// The label of the cell at coordinate `v`, if `v` is (close to) a cell centre.
+fn label_at(labels: &[usize], v: f64) -> String {
+    let i = v.round();
+    if (v - i).abs() > 0.01 || i < 0.0 {
+        return String::new();
+    }
+    labels.get(i as usize).map_or(String::new(), |c| c.to_string())
+}
+
+/// A short number for a colour-bar tick.
+fn compact(v: f64) -> String {
+    match v.abs() {
+        a if a >= 100.0 => format!("{v:.0}"),
+        a if a >= 1.0 => format!("{v:.2}"),
+        _ => format!("{v:.3}"),
+    }
+}
+
+/// A heatmap grid: `values[i][j]` is row `rows[i]` (y) at column `cols[j]` (x); `None` cells are grey.
+#[derive(Debug, Clone)]
+pub struct Grid {
+    /// Column labels (x), e.g. iterations.
+    pub cols: Vec<usize>,
+    /// Row labels (y), e.g. complexities.
+    pub rows: Vec<usize>,
+    /// Values, row-major.
+    pub values: Vec<Vec<Option<f64>>>,
+}
+
+fn draw_heatmap<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    grid: &Grid,
+    diverging: bool,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let e = |err: &dyn std::fmt::Display| Error::Data(format!("plot '{title}': {err}"));
+    let finite: Vec<f64> = grid.values.iter().flatten().flatten().copied().filter(|v| v.is_finite()).collect();
+    let (mut lo, mut hi) = finite.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    if diverging {
+        let m = lo.abs().max(hi.abs()).max(1e-12);
+        (lo, hi) = (-m, m);
+    }
+    if !lo.is_finite() || hi <= lo {
+        (lo, hi) = (if lo.is_finite() { lo - 1.0 } else { 0.0 }, if hi.is_finite() { hi + 1.0 } else { 1.0 });
+    }
+    let (main, bar) = area.split_horizontally(SIZE.0 - 110);
+    let (nx, ny) = (grid.cols.len(), grid.rows.len());
+    let mut chart = ChartBuilder::on(&main)
+        .caption(title, ("sans-serif", 22))
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(60)
+        // Cells are centred on integer coordinates so the axis labels sit in the middle of them.
+        .build_cartesian_2d(-0.5..nx as f64 - 0.5, -0.5..ny as f64 - 0.5)
+        .map_err(|x| e(&x))?;
+    let (cols, rows) = (grid.cols.clone(), grid.rows.clone());
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .x_labels(nx.min(20))
+        .y_labels(ny.min(20))
+        .x_label_formatter(&|v| label_at(&cols, *v))
+        .y_label_formatter(&|v| label_at(&rows, *v))
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 17))
+        .draw()
+        .map_err(|x| e(&x))?;
+    let cells = grid.values.iter().enumerate().flat_map(|(i, row)| {
+        row.iter().enumerate().map(move |(j, v)| {
+            let c = match v {
+                Some(v) if v.is_finite() => cell_color((v - lo) / (hi - lo), diverging),
+                _ => RGBColor(200, 200, 200),
+            };
+            Rectangle::new([(j as f64 - 0.5, i as f64 - 0.5), (j as f64 + 0.5, i as f64 + 0.5)], c.filled())
+        })
+    });
+    chart.draw_series(cells).map_err(|x| e(&x))?;
+    // Colour bar with its scale.
+    let mut cb = ChartBuilder::on(&bar)
+        .margin_top(50)
+        .margin_bottom(58)
+        .margin_right(10)
+        .y_label_area_size(62)
+        .build_cartesian_2d(0.0..1.0, lo..hi)
+        .map_err(|x| e(&x))?;
+    cb.configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_labels(6)
+        .y_label_formatter(&|v| compact(*v))
+        .label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|x| e(&x))?;
+    let steps = 60;
+    cb.draw_series((0..steps).map(|k| {
+        let (a, b) = (lo + (hi - lo) * k as f64 / steps as f64, lo + (hi - lo) * (k + 1) as f64 / steps as f64);
+        Rectangle::new([(0.0, a), (1.0, b)], cell_color(k as f64 / (steps - 1) as f64, diverging).filled())
+    }))
+    .map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// A heatmap as `<base>.png` and `<base>.svg`; `diverging` centres the scale on 0 (for differences).
+pub fn heatmap(base: &Path, title: &str, x_label: &str, y_label: &str, grid: &Grid, diverging: bool) -> Result<()> {
+    render(base, &|a| draw_heatmap(a, title, x_label, y_label, grid, diverging), &|a| {
+        draw_heatmap(a, title, x_label, y_label, grid, diverging)
+    })
+}

@@ -1,0 +1,158 @@
+//! Tuned configs: what a search finds (`best.json`) and what `compare` consumes. The thesis's own
+//! GA optima ship in the same format under `searches/tuned/`.
+
+use crate::error::{Error, Result, ensure};
+use crate::fqi::Algorithm;
+use crate::ga::chromosome::Chromosome;
+use crate::learn::Learner;
+use crate::learn::actions::ActionEncoding;
+use crate::learn::mlp::{Activation, MlpParams};
+use crate::spec::Spec;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The settings a search tuned, with the evidence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TunedConfig {
+    /// Environment name.
+    pub env: String,
+    /// `search` (found by a run) or `thesis` (the thesis's reported optimum).
+    pub source: String,
+    /// Hidden activation.
+    pub activation: Activation,
+    /// Early-stopping δ_min.
+    pub delta_min: f64,
+    /// Early-stopping patience.
+    pub patience: usize,
+    /// The complete network settings (activation, δ_min and patience included).
+    pub network: MlpParams,
+    /// Action encoding the network was tuned with.
+    pub actions: ActionEncoding,
+    /// The algorithm it was tuned for.
+    pub algorithm: Algorithm,
+    /// FQI iterations.
+    pub iterations: usize,
+    /// Episodes per dataset.
+    pub episodes: usize,
+    /// Datasets the fitness averages over.
+    pub datasets: usize,
+    /// Fitness (mean last-iteration score over the search datasets); `null` if any diverged or unknown.
+    pub fitness: Option<f64>,
+    /// Score per search dataset (`null` = diverged).
+    pub scores: Vec<Option<f64>>,
+    /// Hash of the resolved spec the search ran.
+    pub spec_hash: Option<String>,
+    /// Master seed.
+    pub seed: u64,
+    /// Generation in which this chromosome was first evaluated.
+    pub generation: Option<usize>,
+    /// The genes.
+    pub chromosome: Option<Chromosome>,
+    /// The resolved spec of the search (what `reproduce` re-runs).
+    pub spec: Option<Spec>,
+}
+
+/// Built-in copies of the thesis's tuned configs.
+const THESIS: [(&str, &str); 3] = [
+    ("pendulum", include_str!("../searches/tuned/pendulum.json")),
+    ("cartpole", include_str!("../searches/tuned/cartpole.json")),
+    ("bicycle", include_str!("../searches/tuned/bicycle.json")),
+];
+
+impl TunedConfig {
+    /// Checks consistency and ranges; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        ensure(
+            crate::env::NAMES.contains(&self.env.as_str()),
+            "env",
+            &self.env,
+            "must be pendulum, cartpole or bicycle",
+        )?;
+        ensure(
+            self.delta_min.is_finite() && self.delta_min >= 0.0,
+            "delta_min",
+            self.delta_min,
+            "must be finite and ≥ 0",
+        )?;
+        self.network.check().map_err(|e| e.within("network"))?;
+        let n = &self.network;
+        ensure(
+            n.activation == self.activation && n.delta_min == self.delta_min && n.patience == self.patience,
+            "network",
+            "mismatch",
+            "network.activation, network.delta_min and network.patience must equal the top-level values",
+        )?;
+        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
+        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")
+    }
+
+    /// Reads and validates a tuned config; errors name the file and the field.
+    pub fn load(path: &Path) -> Result<TunedConfig> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    fn parse(text: &str, origin: &Path) -> Result<TunedConfig> {
+        let file_err = |message: String| Error::File { path: origin.to_path_buf(), message };
+        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_err(e.to_string()))?;
+        let t: TunedConfig = serde_path_to_error::deserialize(value).map_err(|e| {
+            let path = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            file_err(if path == "." { inner } else { format!("field {path}: {inner}") })
+        })?;
+        t.validate().map_err(|e| file_err(e.to_string()))?;
+        Ok(t)
+    }
+
+    /// `thesis` (the shipped optimum for `env`) or a path to a `best.json`.
+    pub fn resolve(name_or_path: &str, env: &str) -> Result<(TunedConfig, PathBuf)> {
+        if name_or_path == "thesis" {
+            let local = PathBuf::from(format!("searches/tuned/{env}.json"));
+            if local.is_file() {
+                return Ok((Self::load(&local)?, local));
+            }
+            let (_, text) = THESIS
+                .iter()
+                .find(|(n, _)| *n == env)
+                .ok_or_else(|| Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") })?;
+            let origin = PathBuf::from(format!("<built-in searches/tuned/{env}.json>"));
+            return Ok((Self::parse(text, &origin)?, origin));
+        }
+        let p = PathBuf::from(name_or_path);
+        Ok((Self::load(&p)?, p))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thesis_optima_ship_and_validate() {
+        let (p, _) = TunedConfig::resolve("thesis", "pendulum").unwrap();
+        assert_eq!((p.activation, p.delta_min, p.patience), (Activation::Sigmoid, 0.06, 5));
+        let (c, _) = TunedConfig::resolve("thesis", "cartpole").unwrap();
+        assert_eq!((c.delta_min, c.patience), (0.58, 601));
+        let (b, _) = TunedConfig::resolve("thesis", "bicycle").unwrap();
+        assert_eq!((b.delta_min, b.patience, b.network.hidden.clone()), (0.011, 75, vec![10, 10]));
+    }
+
+    #[test]
+    fn missing_or_invalid_fields_are_named() {
+        let text = THESIS[1].1;
+        let mut v: serde_json::Value = serde_json::from_str(text).unwrap();
+        v.as_object_mut().unwrap().remove("patience");
+        let e = TunedConfig::parse(&v.to_string(), Path::new("t.json")).unwrap_err().to_string();
+        assert!(e.contains("t.json") && e.contains("patience"), "{e}");
+        let mut v: serde_json::Value = serde_json::from_str(text).unwrap();
+        v["delta_min"] = serde_json::json!(-1.0);
+        let e = TunedConfig::parse(&v.to_string(), Path::new("t.json")).unwrap_err().to_string();
+        assert!(e.contains("delta_min"), "{e}");
+        let mut v: serde_json::Value = serde_json::from_str(text).unwrap();
+        v["network"]["hidden"] = serde_json::json!([]);
+        let e = TunedConfig::parse(&v.to_string(), Path::new("t.json")).unwrap_err().to_string();
+        assert!(e.contains("network.hidden"), "{e}");
+    }
+}
