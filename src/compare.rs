@@ -1,0 +1,408 @@
+//! Comparison runs (`bfqi-ga compare`, thesis §4.5–4.7): FQI and B-FQI on the same comparison
+//! datasets, with tuned settings, over iterations, complexities and dataset sizes.
+//!
+//! A unit is one (learner, algorithm, complexity, size, dataset) run, stored atomically as
+//! `units/<id>.json` in the run directory; results are always read back from those files, so an
+//! interrupted comparison resumes without redoing finished units, and `report` rebuilds every table
+//! and plot without recomputing.
+
+use crate::env::EnvConfig;
+use crate::error::{Error, Result};
+use crate::exec::Executor;
+use crate::experiment::{DatasetResult, RunConfig, run_dataset};
+use crate::fqi::Algorithm;
+use crate::learn::LearnerConfig;
+use crate::learn::actions::ActionEncoding;
+use crate::learn::mlp::MlpParams;
+use crate::progress::Progress;
+use crate::spec::{Preset, SampleSweep, Spec};
+use crate::store::{self, RunLock, read_json, write_json};
+use crate::tuned::TunedConfig;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Which analyses to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Analysis {
+    /// Score (and steps) against iterations at the preset complexity (thesis Figures 4.10–4.11).
+    Iterations,
+    /// Score against complexity × iteration (Figures 4.4–4.7).
+    Complexity,
+    /// Last-iteration score against dataset size (Figures 4.8–4.9).
+    Samples,
+}
+
+/// One learner's part of a comparison.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LearnerPlan {
+    /// `et` or `mlp`.
+    pub name: String,
+    /// The learner at its preset complexity (for networks, the tuned network).
+    pub learner: LearnerConfig,
+    /// Action encoding.
+    pub actions: ActionEncoding,
+    /// K.
+    pub iterations: usize,
+    /// Datasets of the iterations and complexity analyses.
+    pub datasets: usize,
+    /// Episodes per dataset (iterations and complexity analyses).
+    pub episodes: usize,
+    /// Complexities of the complexity analysis.
+    pub complexities: Vec<usize>,
+    /// The sample analysis.
+    pub samples: Option<SampleSweep>,
+}
+
+/// Everything that determines a comparison (saved as `compare.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompareConfig {
+    /// The environment.
+    pub env: EnvConfig,
+    /// Master seed.
+    pub seed: u64,
+    /// Analyses to run.
+    pub analyses: Vec<Analysis>,
+    /// Per learner.
+    pub learners: Vec<LearnerPlan>,
+    /// The tuned config the networks use.
+    pub tuned: TunedConfig,
+}
+
+/// Flags that override the spec's presets.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Overrides {
+    /// Datasets (every analysis).
+    pub datasets: Option<usize>,
+    /// Episodes per dataset (iterations and complexity analyses).
+    pub episodes: Option<usize>,
+    /// K.
+    pub iterations: Option<usize>,
+    /// Complexities of the complexity analysis.
+    pub complexities: Option<Vec<usize>>,
+    /// Sizes of the sample analysis.
+    pub sizes: Option<Vec<usize>>,
+}
+
+/// The network of a preset with a tuned config's activation and early stopping.
+fn tuned_network(base: &MlpParams, t: &TunedConfig, keep_hidden: bool) -> MlpParams {
+    MlpParams {
+        hidden: if keep_hidden { base.hidden.clone() } else { t.network.hidden.clone() },
+        activation: t.activation,
+        delta_min: t.delta_min,
+        patience: t.patience,
+        ..t.network.clone()
+    }
+}
+
+impl CompareConfig {
+    /// Builds a comparison from a spec, a tuned config and flags.
+    pub fn new(
+        spec: &Spec,
+        tuned: TunedConfig,
+        analyses: Vec<Analysis>,
+        learners: &[&str],
+        o: &Overrides,
+    ) -> Result<Self> {
+        if tuned.env != spec.env.env().name() {
+            return Err(Error::invalid(
+                "tuned.env",
+                &tuned.env,
+                format!("must be {} (the environment compared)", spec.env.env().name()),
+            ));
+        }
+        let mut plans = Vec::new();
+        for &name in learners {
+            let p: &Preset =
+                spec.preset(name).ok_or_else(|| Error::invalid("learner", name, "must be et, mlp or both"))?;
+            let learner = match &p.learner {
+                // The iterations analysis uses the tuned network ([10, 10] in the thesis's bicycle runs).
+                LearnerConfig::Mlp(base) => LearnerConfig::Mlp(tuned_network(base, &tuned, false)),
+                other => other.clone(),
+            };
+            let mut plan = LearnerPlan {
+                name: name.to_string(),
+                learner,
+                actions: p.actions,
+                iterations: o.iterations.unwrap_or(p.iterations),
+                datasets: o.datasets.unwrap_or(p.datasets),
+                episodes: o.episodes.unwrap_or(p.episodes),
+                complexities: o.complexities.clone().unwrap_or_else(|| p.complexities.clone()),
+                samples: p.samples.clone(),
+            };
+            if let Some(s) = &mut plan.samples {
+                if let Some(sizes) = &o.sizes {
+                    s.sizes = sizes.clone();
+                }
+                if let Some(d) = o.datasets {
+                    s.datasets = d;
+                }
+            }
+            if analyses.contains(&Analysis::Complexity) && plan.complexities.is_empty() {
+                return Err(Error::invalid(
+                    format!("experiments.{name}.complexities"),
+                    "[]",
+                    "the complexity analysis needs complexities (the spec or --complexities)",
+                ));
+            }
+            if analyses.contains(&Analysis::Samples) && plan.samples.is_none() {
+                return Err(Error::invalid(
+                    format!("experiments.{name}.samples"),
+                    "null",
+                    "the sample analysis needs a samples section in the spec",
+                ));
+            }
+            plans.push(plan);
+        }
+        let c = CompareConfig { env: spec.env.clone(), seed: spec.seed, analyses, learners: plans, tuned };
+        c.validate()?;
+        Ok(c)
+    }
+
+    fn validate(&self) -> Result<()> {
+        for u in self.units() {
+            self.run_config(&u).validate()?;
+        }
+        Ok(())
+    }
+
+    /// The learner of a plan at a complexity (`None` = the plan's own).
+    fn learner_at(&self, plan: &LearnerPlan, complexity: Option<usize>) -> LearnerConfig {
+        match complexity {
+            None => plan.learner.clone(),
+            Some(c) => plan.learner.with_complexity(c),
+        }
+    }
+
+    /// Every unit, deduplicated, in a fixed order.
+    pub fn units(&self) -> Vec<Unit> {
+        let mut set = BTreeSet::new();
+        for (li, plan) in self.learners.iter().enumerate() {
+            for a in &self.analyses {
+                for algorithm in [Algorithm::Fqi, Algorithm::Bfqi] {
+                    match a {
+                        Analysis::Iterations => {
+                            for d in 0..plan.datasets {
+                                set.insert(Unit {
+                                    learner: li,
+                                    algorithm,
+                                    complexity: None,
+                                    episodes: plan.episodes,
+                                    dataset: d,
+                                });
+                            }
+                        }
+                        Analysis::Complexity => {
+                            for &c in &plan.complexities {
+                                for d in 0..plan.datasets {
+                                    set.insert(Unit {
+                                        learner: li,
+                                        algorithm,
+                                        complexity: Some(c),
+                                        episodes: plan.episodes,
+                                        dataset: d,
+                                    });
+                                }
+                            }
+                        }
+                        Analysis::Samples => {
+                            let s = plan.samples.as_ref().expect("validated");
+                            let c = if algorithm == Algorithm::Fqi { s.fqi } else { s.bfqi };
+                            for &n in &s.sizes {
+                                for d in 0..s.datasets {
+                                    set.insert(Unit {
+                                        learner: li,
+                                        algorithm,
+                                        complexity: Some(c),
+                                        episodes: n,
+                                        dataset: d,
+                                    });
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        set.into_iter().collect()
+    }
+
+    /// The run configuration of a unit (its dataset index selects the dataset and seeds).
+    pub fn run_config(&self, u: &Unit) -> RunConfig {
+        let plan = &self.learners[u.learner];
+        RunConfig {
+            env: self.env.clone(),
+            algorithm: u.algorithm,
+            learner: self.learner_at(plan, u.complexity),
+            actions: plan.actions,
+            iterations: plan.iterations,
+            eval_every: 1,
+            episodes: u.episodes,
+            datasets: u.dataset + 1,
+            seed: self.seed,
+        }
+    }
+
+    /// A unit's id (its result file stem).
+    pub fn unit_id(&self, u: &Unit) -> String {
+        let c = u.complexity.map_or("base".to_string(), |c| format!("c{c}"));
+        format!("{}.{}.{c}.n{}.d{}", self.learners[u.learner].name, u.algorithm.name(), u.episodes, u.dataset)
+    }
+}
+
+/// One (learner, algorithm, complexity, size, dataset) run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Unit {
+    /// Index into [`CompareConfig::learners`].
+    pub learner: usize,
+    /// FQI or B-FQI.
+    pub algorithm: Algorithm,
+    /// `None` = the plan's own learner (tuned network, preset depth).
+    pub complexity: Option<usize>,
+    /// Dataset size in episodes.
+    pub episodes: usize,
+    /// Dataset index.
+    pub dataset: usize,
+}
+
+/// A stored unit with its key.
+#[derive(Debug, Clone)]
+pub struct UnitRecord {
+    /// The unit.
+    pub unit: Unit,
+    /// Its result.
+    pub result: DatasetResult,
+}
+
+/// Resolves spec and tuned config, builds the comparison and creates its run directory (`out`, or
+/// `<results>/<env>/compare-<timestamp>`). `analysis` is iterations, complexity, samples or all;
+/// `learner` et, mlp or both. Returns the directory.
+pub fn prepare(
+    spec_name: &str,
+    tuned: &str,
+    analysis: &str,
+    learner: &str,
+    o: &Overrides,
+    out: Option<&Path>,
+    results: &Path,
+) -> Result<PathBuf> {
+    let (spec, origin) = Spec::resolve(spec_name)?;
+    let env = spec.env.env().name().to_string();
+    let (tuned_cfg, tuned_from) = TunedConfig::resolve(tuned, &env)?;
+    let analyses = match analysis {
+        "iterations" => vec![Analysis::Iterations],
+        "complexity" => vec![Analysis::Complexity],
+        "samples" => vec![Analysis::Samples],
+        "all" => vec![Analysis::Iterations, Analysis::Complexity, Analysis::Samples],
+        other => return Err(Error::invalid("analysis", other, "must be iterations, complexity, samples or all")),
+    };
+    let learners: Vec<&str> = match learner {
+        "both" => vec!["et", "mlp"],
+        "et" | "mlp" => vec![learner],
+        other => return Err(Error::invalid("learner", other, "must be et, mlp or both")),
+    };
+    let cfg = CompareConfig::new(&spec, tuned_cfg, analyses, &learners, o)?;
+    let dir = match out {
+        Some(d) => {
+            if d.join("compare.json").exists() {
+                return Err(Error::File {
+                    path: d.to_path_buf(),
+                    message: format!("already holds a comparison: use --resume {}", d.display()),
+                });
+            }
+            store::create_dir(d)?;
+            d.to_path_buf()
+        }
+        None => store::new_run_dir(&results.join(&env), "compare-")?,
+    };
+    let info = serde_json::json!({
+        "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
+        "tuned_source": tuned_from.display().to_string(), "analysis": analysis, "learner": learner,
+        "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"),
+    });
+    create(&dir, &cfg, &info)?;
+    Ok(dir)
+}
+
+/// Creates a comparison run directory's configuration files.
+pub fn create(dir: &Path, cfg: &CompareConfig, info: &serde_json::Value) -> Result<()> {
+    store::create_dir(&dir.join("units"))?;
+    write_json(&dir.join("compare.json"), cfg)?;
+    write_json(&dir.join("run.json"), info)
+}
+
+/// Loads the configuration of a comparison directory.
+pub fn load(dir: &Path) -> Result<CompareConfig> {
+    let p = dir.join("compare.json");
+    if !p.is_file() {
+        return Err(Error::File {
+            path: dir.to_path_buf(),
+            message: "not a comparison run directory (no compare.json)".into(),
+        });
+    }
+    read_json(&p)
+}
+
+fn unit_path(dir: &Path, id: &str) -> PathBuf {
+    dir.join("units").join(format!("{id}.json"))
+}
+
+/// Evaluates one unit by id and stores it (also the Slurm worker's entry point).
+pub fn run_unit(dir: &Path, cfg: &CompareConfig, id: &str) -> Result<()> {
+    let u = cfg
+        .units()
+        .into_iter()
+        .find(|u| cfg.unit_id(u) == id)
+        .ok_or_else(|| Error::invalid("unit", id, "is not a unit of this comparison"))?;
+    let r = run_dataset(&cfg.run_config(&u), u.dataset, |_| {})?;
+    write_json(&unit_path(dir, id), &r)
+}
+
+/// Runs (or resumes) every missing unit of the comparison in `dir`. Returns false if stopped early.
+///
+/// With `max_hours`, no unit starts after that many hours (running units finish).
+pub fn run(
+    dir: &Path,
+    exec: &dyn Executor,
+    interrupt: &AtomicBool,
+    max_hours: Option<f64>,
+    quiet: bool,
+) -> Result<bool> {
+    let started = std::time::Instant::now();
+    let cfg = load(dir)?;
+    let _lock = RunLock::acquire(dir)?;
+    let ids: Vec<String> =
+        cfg.units().iter().map(|u| cfg.unit_id(u)).filter(|id| !unit_path(dir, id).is_file()).collect();
+    let progress = Progress::new("comparison", 1, quiet);
+    progress.line(&format!("compare {} → {} ({} units to run)", cfg.env.env().name(), dir.display(), ids.len()));
+    progress.start_stage("units", ids.len() as u64);
+    let stop = AtomicBool::new(false);
+    let work = |id: &str| -> Result<()> {
+        let over = max_hours.is_some_and(|h| started.elapsed().as_secs_f64() > h * 3600.0);
+        if over || interrupt.load(Ordering::SeqCst) {
+            stop.store(true, Ordering::SeqCst);
+            return Ok(());
+        }
+        run_unit(dir, &cfg, id)
+    };
+    exec.run(&ids, &work, &|| progress.unit_done(), &stop)?;
+    progress.stage_done();
+    progress.finish();
+    Ok(ids.iter().all(|id| unit_path(dir, id).is_file()))
+}
+
+/// Reads every unit of a finished comparison.
+pub fn collect(dir: &Path, cfg: &CompareConfig) -> Result<Vec<UnitRecord>> {
+    cfg.units()
+        .into_iter()
+        .map(|u| {
+            let p = unit_path(dir, &cfg.unit_id(&u));
+            Ok(UnitRecord { unit: u, result: read_json(&p)? })
+        })
+        .collect()
+}

@@ -1,0 +1,6 @@
+//! Reports: statistics over datasets, tables, plots and markdown.
+
+pub mod claims;
+pub mod comparison;
+pub mod plot;
+pub mod stats;
