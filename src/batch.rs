@@ -1,0 +1,450 @@
+//! Overnight batches (`bfqi-ga batch PLAN.json`): searches and comparisons run in order, each in its
+//! own run directory under one batch directory. A failing job is recorded and the others go on; a
+//! wall-clock budget stops cleanly between units; `--resume` continues where it stopped.
+//!
+//! A plan is `{"jobs": [...]}`; a job is either
+//! `{"name": "s", "search": "bicycle", "presets": [...], "generations": 5, ...}` (any
+//! [`SearchOverrides`] field) or
+//! `{"name": "c", "compare": "bicycle", "tuned": "from:s" | "thesis" | "path/best.json",
+//!   "analysis": "iterations", "learner": "et", ...}` (any comparison override). `from:<job>` uses the
+//! best config that search job found.
+
+use crate::compare::{self, Overrides};
+use crate::error::{Error, Result};
+use crate::exec::ExecutorFactory;
+use crate::ga::search::{self, Controls, Ending, SearchOverrides};
+use crate::store::{self, RunLock, read_json, write_atomic, write_json};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// A search job of a plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchJob {
+    /// Job name (also its directory name).
+    pub name: String,
+    /// Environment name or spec file.
+    pub search: String,
+    /// Presets to overlay, in order.
+    #[serde(default)]
+    pub presets: Vec<String>,
+    /// Overrides.
+    #[serde(default)]
+    pub generations: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub population: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub datasets: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub iterations: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Overrides.
+    #[serde(default)]
+    pub stall_generations: Option<usize>,
+}
+
+/// A comparison job of a plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompareJob {
+    /// Job name (also its directory name).
+    pub name: String,
+    /// Environment name or spec file.
+    pub compare: String,
+    /// `thesis`, a best.json path, or `from:<search job>`.
+    #[serde(default = "thesis")]
+    pub tuned: String,
+    /// iterations, complexity, samples or all.
+    #[serde(default = "iterations")]
+    pub analysis: String,
+    /// et, mlp or both.
+    #[serde(default = "both")]
+    pub learner: String,
+    /// Overrides.
+    #[serde(default)]
+    pub datasets: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub episodes: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub iterations: Option<usize>,
+    /// Overrides.
+    #[serde(default)]
+    pub complexities: Option<Vec<usize>>,
+    /// Overrides.
+    #[serde(default)]
+    pub sizes: Option<Vec<usize>>,
+}
+
+fn thesis() -> String {
+    "thesis".into()
+}
+fn iterations() -> String {
+    "iterations".into()
+}
+fn both() -> String {
+    "both".into()
+}
+
+/// A job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Job {
+    /// A search.
+    Search(SearchJob),
+    /// A comparison.
+    Compare(CompareJob),
+}
+
+impl Job {
+    /// The job's name.
+    pub fn name(&self) -> &str {
+        match self {
+            Job::Search(j) => &j.name,
+            Job::Compare(j) => &j.name,
+        }
+    }
+}
+
+/// A batch plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Plan {
+    /// Jobs, run in order.
+    pub jobs: Vec<Job>,
+}
+
+impl Plan {
+    /// Parses a plan; errors name the file, the job and the field.
+    pub fn parse(text: &str, origin: &Path) -> Result<Plan> {
+        let err = |message: String| Error::File { path: origin.to_path_buf(), message };
+        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        let obj = v.as_object().ok_or_else(|| err("a plan is an object {\"jobs\": [...]}".into()))?;
+        if let Some(k) = obj.keys().find(|k| *k != "jobs" && !k.starts_with('_')) {
+            return Err(err(format!("unknown field `{k}`: a plan has only `jobs`")));
+        }
+        let jobs = obj
+            .get("jobs")
+            .and_then(|j| j.as_array())
+            .ok_or_else(|| err("field jobs: must be a list of jobs".into()))?;
+        let mut out: Vec<Job> = Vec::new();
+        for (i, j) in jobs.iter().enumerate() {
+            let name = j.get("name").and_then(|n| n.as_str()).map(String::from);
+            let label = format!("job {} ({})", i + 1, name.as_deref().unwrap_or("unnamed"));
+            let job = if j.get("search").is_some() {
+                Job::Search(deser(j, &label, origin)?)
+            } else if j.get("compare").is_some() {
+                Job::Compare(deser(j, &label, origin)?)
+            } else {
+                return Err(err(format!("{label}: needs a `search` or a `compare` field")));
+            };
+            let n = job.name();
+            if n.is_empty() || n.contains('/') || n.starts_with('.') {
+                return Err(err(format!("{label}: field name: must be a non-empty name without '/'")));
+            }
+            if out.iter().any(|o| o.name() == n) {
+                return Err(err(format!("{label}: field name: `{n}` is used by an earlier job")));
+            }
+            let source = match &job {
+                Job::Compare(c) => c.tuned.strip_prefix("from:"),
+                Job::Search(_) => None,
+            };
+            if let Some(src) = source.filter(|src| !out.iter().any(|o| matches!(o, Job::Search(s) if s.name == *src))) {
+                return Err(err(format!("{label}: field tuned: `from:{src}` must name an earlier search job")));
+            }
+            out.push(job);
+        }
+        if out.is_empty() {
+            return Err(err("field jobs: the plan has no jobs".into()));
+        }
+        Ok(Plan { jobs: out })
+    }
+}
+
+fn deser<T: serde::de::DeserializeOwned>(v: &serde_json::Value, label: &str, origin: &Path) -> Result<T> {
+    serde_path_to_error::deserialize(v.clone()).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner().to_string();
+        Error::File {
+            path: origin.to_path_buf(),
+            message: if path == "." { format!("{label}: {inner}") } else { format!("{label}: field {path}: {inner}") },
+        }
+    })
+}
+
+/// Where each job stands (`batch.json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JobState {
+    /// Job name.
+    pub name: String,
+    /// `search` or `compare`.
+    pub kind: String,
+    /// `pending`, `finished`, `failed` or `interrupted`.
+    pub state: String,
+    /// Its run directory (relative to the batch directory).
+    pub dir: String,
+    /// Why it failed or stopped.
+    pub message: String,
+    /// Seconds spent (over all invocations).
+    pub seconds: f64,
+    /// One-line result: best fitness and settings, or claims.
+    pub result: String,
+}
+
+/// How a batch invocation ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BatchEnding {
+    /// Every job ran (some may have failed).
+    Done {
+        /// Jobs that failed.
+        failed: usize,
+    },
+    /// Stopped by the budget or Ctrl-C; resumable.
+    Stopped(String),
+}
+
+/// Creates a batch directory for `plan` (read from `plan_path`).
+pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<PathBuf> {
+    let text = std::fs::read_to_string(plan_path).map_err(|e| Error::io(plan_path, e))?;
+    let plan = Plan::parse(&text, plan_path)?;
+    let dir = match out {
+        Some(d) => {
+            if d.join("plan.json").exists() {
+                return Err(Error::File {
+                    path: d.to_path_buf(),
+                    message: format!("already holds a batch: use --resume {}", d.display()),
+                });
+            }
+            store::create_dir(d)?;
+            d.to_path_buf()
+        }
+        None => {
+            let stem = plan_path.file_stem().map_or("batch".into(), |s| s.to_string_lossy().into_owned());
+            store::new_run_dir(&results.join("batches"), &format!("{stem}-"))?
+        }
+    };
+    write_json(&dir.join("plan.json"), &plan)?;
+    let states: Vec<JobState> = plan
+        .jobs
+        .iter()
+        .map(|j| JobState {
+            name: j.name().to_string(),
+            kind: if matches!(j, Job::Search(_)) { "search".into() } else { "compare".into() },
+            state: "pending".into(),
+            dir: j.name().to_string(),
+            message: String::new(),
+            seconds: 0.0,
+            result: String::new(),
+        })
+        .collect();
+    write_json(&dir.join("batch.json"), &states)?;
+    Ok(dir)
+}
+
+/// Budget and stop controls of a batch invocation.
+pub struct BatchControls<'a> {
+    /// Raised by Ctrl-C.
+    pub interrupt: &'a AtomicBool,
+    /// Wall-clock budget of this invocation, in hours.
+    pub max_hours: Option<f64>,
+    /// No progress output.
+    pub quiet: bool,
+}
+
+fn describe_search(dir: &Path) -> String {
+    match read_json::<crate::tuned::TunedConfig>(&dir.join("best.json")) {
+        Ok(t) => format!(
+            "best fitness {} — {} δ_min {} patience {}",
+            t.fitness.map_or("−∞".into(), |f| format!("{f:.4}")),
+            serde_json::to_value(t.activation).unwrap_or_default().as_str().unwrap_or("?"),
+            t.delta_min,
+            t.patience
+        ),
+        Err(_) => "no best.json".into(),
+    }
+}
+
+/// Runs (or resumes) the batch in `dir`.
+pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -> Result<BatchEnding> {
+    let plan: Plan = read_json(&dir.join("plan.json"))?;
+    let mut states: Vec<JobState> = read_json(&dir.join("batch.json"))?;
+    let _lock = RunLock::acquire(dir)?;
+    let started = Instant::now();
+    let n = plan.jobs.len();
+    let mut ending = None;
+    for (i, job) in plan.jobs.iter().enumerate() {
+        if states[i].state == "finished" {
+            continue;
+        }
+        let remaining = c.max_hours.map(|h| h - started.elapsed().as_secs_f64() / 3600.0);
+        if remaining.is_some_and(|r| r <= 0.0) || c.interrupt.load(Ordering::SeqCst) {
+            ending = Some(BatchEnding::Stopped(if c.interrupt.load(Ordering::SeqCst) {
+                "interrupted".into()
+            } else {
+                "time budget reached".into()
+            }));
+            break;
+        }
+        if !c.quiet {
+            eprintln!("{} job {} of {n}: {} ({})", store::now_utc().1, i + 1, job.name(), states[i].kind);
+        }
+        let t = Instant::now();
+        let job_dir = dir.join(job.name());
+        let outcome: Result<(String, String, String)> = match job {
+            Job::Search(s) => (|| {
+                if !job_dir.join("spec.json").is_file() {
+                    let o = SearchOverrides {
+                        generations: s.generations,
+                        population: s.population,
+                        datasets: s.datasets,
+                        iterations: s.iterations,
+                        episodes: s.episodes,
+                        seed: s.seed,
+                        stall_generations: s.stall_generations,
+                    };
+                    search::prepare(&s.search, &s.presets, &o, Some(&job_dir), Path::new("results"))?;
+                }
+                let controls = Controls { interrupt: c.interrupt, max_hours: remaining, quiet: c.quiet };
+                let exec = make_exec(&job_dir)?;
+                Ok(match search::run(&job_dir, exec.as_ref(), &controls)? {
+                    Ending::Finished(r) => ("finished".into(), r, describe_search(&job_dir)),
+                    Ending::Interrupted(r) => ("interrupted".into(), r, describe_search(&job_dir)),
+                })
+            })(),
+            Job::Compare(cj) => (|| {
+                if !job_dir.join("compare.json").is_file() {
+                    let tuned = match cj.tuned.strip_prefix("from:") {
+                        Some(src) => {
+                            let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
+                            if states[k].state != "finished" {
+                                return Err(Error::File {
+                                    path: dir.join(src),
+                                    message: format!(
+                                        "search job `{src}` has not finished ({}), so it has no tuned config",
+                                        states[k].state
+                                    ),
+                                });
+                            }
+                            dir.join(src).join("best.json").display().to_string()
+                        }
+                        None => cj.tuned.clone(),
+                    };
+                    let o = Overrides {
+                        datasets: cj.datasets,
+                        episodes: cj.episodes,
+                        iterations: cj.iterations,
+                        complexities: cj.complexities.clone(),
+                        sizes: cj.sizes.clone(),
+                    };
+                    compare::prepare(
+                        &cj.compare,
+                        &tuned,
+                        &cj.analysis,
+                        &cj.learner,
+                        &o,
+                        Some(&job_dir),
+                        Path::new("results"),
+                    )?;
+                }
+                let exec = make_exec(&job_dir)?;
+                if !compare::run(&job_dir, exec.as_ref(), c.interrupt, remaining, c.quiet)? {
+                    return Ok(("interrupted".into(), "stopped between units".into(), String::new()));
+                }
+                let out = crate::report::comparison::regenerate(&job_dir)?;
+                let supported =
+                    out.claims.iter().filter(|c| c.verdict == crate::report::claims::Verdict::Supported).count();
+                Ok((
+                    "finished".into(),
+                    String::new(),
+                    format!("{supported} of {} thesis claims supported; report.md", out.claims.len()),
+                ))
+            })(),
+        };
+        states[i].seconds += t.elapsed().as_secs_f64();
+        match outcome {
+            Ok((state, message, result)) => {
+                states[i].state = state;
+                states[i].message = message;
+                states[i].result = result;
+            }
+            Err(e) => {
+                states[i].state = "failed".into();
+                states[i].message = e.to_string();
+                if !c.quiet {
+                    eprintln!("{} job {} failed: {e}", store::now_utc().1, job.name());
+                }
+            }
+        }
+        write_json(&dir.join("batch.json"), &states)?;
+        write_summary(dir, &states)?;
+        if states[i].state == "interrupted" {
+            ending = Some(BatchEnding::Stopped(states[i].message.clone()));
+            break;
+        }
+    }
+    write_summary(dir, &states)?;
+    Ok(ending.unwrap_or(BatchEnding::Done { failed: states.iter().filter(|s| s.state == "failed").count() }))
+}
+
+fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
+    let mut md = String::from(
+        "# Batch summary\n\n| job | kind | state | time | result | details |\n|---|---|---|---|---|---|\n",
+    );
+    for s in states {
+        let link = match s.kind.as_str() {
+            "compare" if s.state == "finished" => format!("[report]({}/report.md)", s.dir),
+            "search" if dir.join(&s.dir).join("best.json").is_file() => {
+                format!("[best.json]({0}/best.json), [fitness]({0}/fitness.png)", s.dir)
+            }
+            _ => String::new(),
+        };
+        let details = if s.message.is_empty() { link } else { format!("{} {link}", s.message.replace('|', "/")) };
+        md.push_str(&format!(
+            "| {} | {} | {} | {} | {} | {} |\n",
+            s.name,
+            s.kind,
+            s.state,
+            crate::progress::human(s.seconds),
+            s.result.replace('|', "/"),
+            details
+        ));
+    }
+    write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> std::result::Result<Plan, String> {
+        Plan::parse(text, Path::new("plan.json")).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn plans_parse_and_errors_name_job_and_field() {
+        let p = parse(r#"{"jobs": [{"name": "s", "search": "bicycle", "seed": 3}, {"name": "c", "compare": "bicycle", "tuned": "from:s"}]}"#).unwrap();
+        assert_eq!(p.jobs.len(), 2);
+        let e = parse(r#"{"jobs": [{"name": "s", "search": "bicycle", "sed": 3}]}"#).unwrap_err();
+        assert!(e.contains("plan.json") && e.contains("job 1 (s)") && e.contains("sed"), "{e}");
+        let e = parse(r#"{"jobs": [{"name": "c", "compare": "bicycle", "datasets": "ten"}]}"#).unwrap_err();
+        assert!(e.contains("job 1 (c)") && e.contains("datasets"), "{e}");
+        let e = parse(r#"{"jobs": [{"name": "c", "compare": "bicycle", "tuned": "from:nowhere"}]}"#).unwrap_err();
+        assert!(e.contains("field tuned"), "{e}");
+        let e = parse(r#"{"jobs": [{"name": "x"}]}"#).unwrap_err();
+        assert!(e.contains("job 1 (x)") && e.contains("search"), "{e}");
+        let e = parse(r#"{"jobs": [{"name": "a", "search": "cartpole"}, {"name": "a", "search": "cartpole"}]}"#)
+            .unwrap_err();
+        assert!(e.contains("job 2 (a)") && e.contains("earlier job"), "{e}");
+    }
+}

@@ -1,0 +1,167 @@
+//! The Slurm executor: the missing units of a generation (or a comparison) become one job array,
+//! submitted with `sbatch --wait`; each task runs `bfqi-ga worker <RUN_DIR> <UNIT>`, which computes
+//! its unit and writes the result atomically into the run directory. The driver then reads the
+//! results **from the files** (never from exit codes alone), resubmits missing units a bounded
+//! number of times, and reports units that keep failing with their Slurm log paths.
+//!
+//! The run directory must be on a file system that every node sees (NFS, Lustre, BeeGFS…); the
+//! worker refuses a unit whose run directory it cannot see.
+
+use super::Executor;
+use crate::error::{Error, Result};
+use crate::store::{self, write_atomic};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Settings of the Slurm executor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Slurm {
+    /// The run directory (on a shared file system).
+    pub run_dir: PathBuf,
+    /// `--partition`.
+    pub partition: Option<String>,
+    /// `--time`, e.g. `02:00:00`.
+    pub time: Option<String>,
+    /// `--cpus-per-task`.
+    pub cpus_per_task: Option<usize>,
+    /// Array throttle `%T`: tasks running at once.
+    pub max_parallel: Option<usize>,
+    /// Further `sbatch` arguments, passed through.
+    pub extra: Vec<String>,
+    /// Resubmissions of missing units before giving up.
+    pub retries: usize,
+    /// The `bfqi-ga` binary the tasks run (must be visible from the nodes).
+    pub binary: PathBuf,
+    /// The `sbatch` command.
+    pub sbatch: String,
+}
+
+impl Slurm {
+    /// An executor for `run_dir` with defaults: this binary, `sbatch` from PATH, 2 resubmissions.
+    pub fn new(run_dir: &Path) -> Result<Self> {
+        let binary = std::env::current_exe().map_err(|e| Error::io("bfqi-ga executable", e))?;
+        let run_dir = std::fs::canonicalize(run_dir).map_err(|e| Error::io(run_dir, e))?;
+        Ok(Slurm {
+            run_dir,
+            partition: None,
+            time: None,
+            cpus_per_task: None,
+            max_parallel: None,
+            extra: Vec::new(),
+            retries: 2,
+            binary,
+            sbatch: std::env::var("BFQI_SBATCH").unwrap_or_else(|_| "sbatch".into()),
+        })
+    }
+
+    fn result_path(&self, id: &str) -> PathBuf {
+        self.run_dir.join("units").join(format!("{id}.json"))
+    }
+
+    /// Submits one array over `ids` and waits for it. Returns, for each id, the log file of its task,
+    /// and what `sbatch` said on stderr.
+    fn submit(&self, ids: &[String], attempt: usize) -> Result<(Vec<PathBuf>, String)> {
+        let dir = self.run_dir.join("slurm");
+        let logs = dir.join("logs");
+        store::create_dir(&logs)?;
+        // Arrays are numbered in submission order, so no two share a file (and resumes append).
+        let seq = std::fs::read_dir(&dir)
+            .map(|d| d.flatten().filter(|e| e.file_name().to_string_lossy().starts_with("units-")).count())
+            .unwrap_or(0);
+        let tag = format!("{seq:04}-try{attempt}");
+        let list = dir.join(format!("units-{tag}.txt"));
+        write_atomic(&list, |w| {
+            for id in ids {
+                writeln!(w, "{id}")?;
+            }
+            Ok(())
+        })?;
+        let script = dir.join(format!("array-{tag}.sh"));
+        let body = format!(
+            "#!/bin/bash\n# One bfqi-ga unit per array task; the worker writes the result atomically.\nset -eu\nid=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" {list})\nexec {bin} worker {run} \"$id\"\n",
+            list = shell_quote(&list),
+            bin = shell_quote(&self.binary),
+            run = shell_quote(&self.run_dir),
+        );
+        write_atomic(&script, |w| w.write_all(body.as_bytes()))?;
+        let mut cmd = Command::new(&self.sbatch);
+        let throttle = self.max_parallel.map_or(String::new(), |t| format!("%{t}"));
+        cmd.arg("--wait")
+            .arg(format!("--array=0-{}{throttle}", ids.len() - 1))
+            .arg("--job-name=bfqi-ga")
+            .arg(format!("--output={}/%A_%a.out", logs.display()))
+            .arg(format!("--chdir={}", self.run_dir.display()));
+        if let Some(p) = &self.partition {
+            cmd.arg(format!("--partition={p}"));
+        }
+        if let Some(t) = &self.time {
+            cmd.arg(format!("--time={t}"));
+        }
+        if let Some(c) = self.cpus_per_task {
+            cmd.arg(format!("--cpus-per-task={c}"));
+        }
+        cmd.args(&self.extra).arg(&script);
+        // The array's exit status is not trusted either way: the result files decide.
+        let out = cmd.output().map_err(|e| Error::io(&self.sbatch, e))?;
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let job = stdout.split_whitespace().last().unwrap_or("JOBID").to_string();
+        let paths = (0..ids.len()).map(|k| logs.join(format!("{job}_{k}.out"))).collect();
+        Ok((paths, String::from_utf8_lossy(&out.stderr).trim().to_string()))
+    }
+}
+
+use std::io::Write as _;
+
+fn shell_quote(p: &Path) -> String {
+    format!("'{}'", p.display().to_string().replace('\'', "'\\''"))
+}
+
+impl Executor for Slurm {
+    fn run(
+        &self,
+        ids: &[String],
+        _work: &(dyn Fn(&str) -> Result<()> + Sync),
+        done: &(dyn Fn() + Sync),
+        stop: &AtomicBool,
+    ) -> Result<()> {
+        let mut missing: Vec<String> = ids.iter().filter(|id| !self.result_path(id).is_file()).cloned().collect();
+        for _ in 0..ids.len() - missing.len() {
+            done();
+        }
+        let mut last: Vec<(String, PathBuf)> = Vec::new();
+        let mut said = String::new();
+        for attempt in 0..=self.retries {
+            if missing.is_empty() || stop.load(Ordering::SeqCst) {
+                break;
+            }
+            let (logs, stderr) = self.submit(&missing, attempt)?;
+            said = stderr;
+            last = missing.iter().cloned().zip(logs).collect();
+            let before = missing.len();
+            missing.retain(|id| !self.result_path(id).is_file());
+            for _ in 0..before - missing.len() {
+                done();
+            }
+        }
+        if !missing.is_empty() && !stop.load(Ordering::SeqCst) {
+            let shown: Vec<String> = last
+                .iter()
+                .filter(|(id, _)| missing.contains(id))
+                .take(5)
+                .map(|(id, log)| format!("{id} (log {})", log.display()))
+                .collect();
+            let said = if said.is_empty() { String::new() } else { format!("; sbatch said: {said}") };
+            return Err(Error::File {
+                path: self.run_dir.clone(),
+                message: format!(
+                    "{} unit(s) still missing after {} submission(s): {}{said}",
+                    missing.len(),
+                    self.retries + 1,
+                    shown.join(", ")
+                ),
+            });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,134 @@
+//! The Slurm executor: driver logic against a stand-in `sbatch` (always), and against a real
+//! single-node Slurm cluster when `BFQI_REAL_SLURM=1` (CI starts one with scripts/local-slurm.sh).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bfqi-slurm-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn fake() -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support/fake-sbatch.sh").display().to_string()
+}
+
+const SEARCH: [&str; 15] = [
+    "search",
+    "cartpole",
+    "--quick",
+    "--episodes",
+    "25",
+    "--datasets",
+    "2",
+    "--iterations",
+    "2",
+    "--population",
+    "4",
+    "--generations",
+    "2",
+    "--quiet",
+    "--seed",
+];
+
+fn search(out: &Path, extra: &[&str], env: &[(&str, String)]) -> Output {
+    let mut c = bin();
+    c.args(SEARCH).arg("3").arg("--out").arg(out).args(extra);
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().unwrap()
+}
+
+fn read(p: PathBuf) -> String {
+    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+#[test]
+fn slurm_driver_matches_local_and_resubmits_a_lost_task() {
+    let d = tmp("driver");
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    assert!(search(&local, &[], &[]).status.success());
+    let env = [
+        ("BFQI_SBATCH", fake()),
+        ("FAKE_SBATCH_DROP_ONCE", "0".to_string()),
+        ("FAKE_SBATCH_STATE", d.join("state").display().to_string()),
+    ];
+    let o = search(&slurm, &["--executor", "slurm", "--slurm-max-parallel", "2"], &env);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["generations.jsonl", "best.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
+    }
+    // The lost task was resubmitted: more than one array for the first generation.
+    let lists = std::fs::read_dir(slurm.join("slurm"))
+        .unwrap()
+        .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with("units-"))
+        .count();
+    assert!(lists >= 3, "expected a resubmission, saw {lists} arrays");
+}
+
+#[test]
+fn a_unit_that_always_fails_is_reported_with_its_log() {
+    let d = tmp("always");
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_DROP_ALWAYS", "0".to_string())];
+    let o = search(&d.join("run"), &["--executor", "slurm", "--slurm-retries", "1"], &env);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("still missing after 2 submission(s)") && err.contains("log "), "{err}");
+}
+
+#[test]
+fn the_worker_refuses_a_run_directory_it_cannot_see() {
+    let o = bin().args(["worker", "/nonexistent/run", "0_10_2_10_0.d0"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(err.contains("shared by the nodes"), "{err}");
+}
+
+/// Needs a running cluster: `scripts/local-slurm.sh start` then `BFQI_REAL_SLURM=1 cargo test`.
+#[test]
+fn real_slurm_matches_local_for_a_search_and_a_comparison() {
+    if std::env::var("BFQI_REAL_SLURM").as_deref() != Ok("1") {
+        eprintln!("BFQI_REAL_SLURM is not 1: the real-cluster check runs in CI (scripts/local-slurm.sh)");
+        return;
+    }
+    let d = tmp("real");
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    assert!(search(&local, &[], &[]).status.success());
+    let o = search(&slurm, &["--executor", "slurm", "--slurm-time", "00:10:00"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["generations.jsonl", "best.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: real slurm vs local");
+    }
+    let cmp = |out: &Path, extra: &[&str]| {
+        bin()
+            .args([
+                "compare",
+                "cartpole",
+                "--learner",
+                "et",
+                "--datasets",
+                "2",
+                "--episodes",
+                "30",
+                "--iterations",
+                "2",
+                "--quiet",
+                "--out",
+            ])
+            .arg(out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    assert!(cmp(&d.join("cl"), &[]).status.success());
+    let o = cmp(&d.join("cs"), &["--executor", "slurm"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(read(d.join("cl/summary.csv")), read(d.join("cs/summary.csv")));
+}
