@@ -3,10 +3,18 @@
 
 use crate::dataset::{self, dataset_seed};
 use crate::env::{EnvConfig, NAMES};
+use crate::experiment::{self, RunConfig};
+use crate::fqi::Algorithm;
+use crate::learn::LearnerConfig;
+use crate::learn::actions::ActionEncoding;
+use crate::learn::mlp::Activation;
+use crate::spec::Spec;
+use crate::store;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Boosted Fitted Q-Iteration, tuned by a genetic algorithm.
 #[derive(Debug, Parser)]
@@ -23,32 +31,28 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Genetic search of the MLP's early-stopping settings and activation (the main job).
-    Search(Unavailable),
+    Search(Box<SearchArgs>),
     /// B-FQI vs FQI comparison runs with tuned settings.
-    Compare(Unavailable),
+    Compare(Box<CompareArgs>),
     /// One FQI or B-FQI run over one or more datasets.
-    Run(Unavailable),
+    Run(Box<RunArgs>),
     /// Re-derive a tuned config's fitness from scratch and check it matches.
-    Reproduce(Unavailable),
+    Reproduce(ReproduceArgs),
     /// Run a plan of searches and comparisons (overnight batches).
-    Batch(Unavailable),
+    Batch(BatchArgs),
     /// One line per run under results/: state, generation, best fitness.
-    Status(Unavailable),
+    Status(StatusArgs),
     /// Regenerate tables, plots and report.md from stored results.
-    Report(Unavailable),
+    Report(ReportArgs),
     /// Write a random-policy dataset as CSV.
     Dataset(DatasetArgs),
     /// List the environments and their settings.
     Envs(EnvsArgs),
     /// Benchmarks: learners, FQI, search throughput.
-    Bench(Unavailable),
-}
-
-/// Arguments of a subcommand that this build does not have yet.
-#[derive(Debug, Args)]
-pub struct Unavailable {
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
-    rest: Vec<String>,
+    Bench(BenchArgs),
+    /// Compute one unit of a run directory (what Slurm array tasks run).
+    #[command(hide = true)]
+    Worker(WorkerArgs),
 }
 
 /// `bfqi-ga dataset`.
@@ -73,6 +77,279 @@ pub struct DatasetArgs {
     pub out: PathBuf,
 }
 
+/// `bfqi-ga run`: presets come from the spec file's `experiments.<learner>`; flags override them.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Environment name (uses searches/<ENV>.json) or a spec file.
+    pub env: String,
+    /// Algorithm.
+    #[arg(long, default_value = "bfqi", value_parser = ["fqi", "bfqi"])]
+    pub algo: String,
+    /// Learner (selects the preset).
+    #[arg(long, default_value = "et", value_parser = ["et", "mlp"])]
+    pub learner: String,
+    /// Action encoding.
+    #[arg(long, value_parser = ["input", "per-action"])]
+    pub actions: Option<String>,
+    /// Extra-Trees: number of trees.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub trees: Option<usize>,
+    /// Extra-Trees: maximum depth (edges from the root).
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub depth: Option<usize>,
+    /// Extra-Trees: minimum samples to split a node.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub min_split: Option<usize>,
+    /// Extra-Trees: minimum samples per leaf.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub min_leaf: Option<usize>,
+    /// MLP: hidden layer widths, e.g. 10,10.
+    #[arg(long, value_delimiter = ',', help_heading = "MLP")]
+    pub hidden: Option<Vec<usize>>,
+    /// MLP: activation.
+    #[arg(long, value_parser = ["sigmoid", "tanh", "relu"], help_heading = "MLP")]
+    pub activation: Option<String>,
+    /// MLP: early-stopping δ_min.
+    #[arg(long, allow_negative_numbers = true, help_heading = "MLP")]
+    pub delta_min: Option<f64>,
+    /// MLP: early-stopping patience.
+    #[arg(long, help_heading = "MLP")]
+    pub patience: Option<usize>,
+    /// MLP: RMSProp learning rate.
+    #[arg(long, allow_negative_numbers = true, help_heading = "MLP")]
+    pub learning_rate: Option<f64>,
+    /// K, the number of iterations.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Episodes per dataset.
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Number of datasets.
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// Master seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Evaluate the greedy policy every E iterations (and at the last).
+    #[arg(long)]
+    pub eval_every: Option<usize>,
+    /// Print one JSON document (every record and the summary) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write run.json and run.csv into this directory (atomically).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Where units of work run.
+#[derive(Debug, Clone, Args)]
+pub struct ExecArgs {
+    /// `local` (this machine's threads) or `slurm` (one job array per generation or comparison; the
+    /// run directory must be on a file system shared by the nodes).
+    #[arg(long, default_value = "local", value_parser = ["local", "slurm"], help_heading = "Executor")]
+    pub executor: String,
+    /// Slurm partition.
+    #[arg(long, help_heading = "Executor")]
+    pub slurm_partition: Option<String>,
+    /// Slurm time limit per task, e.g. 02:00:00.
+    #[arg(long, help_heading = "Executor")]
+    pub slurm_time: Option<String>,
+    /// CPUs per Slurm task.
+    #[arg(long, help_heading = "Executor")]
+    pub slurm_cpus_per_task: Option<usize>,
+    /// Array tasks running at once (`%T`).
+    #[arg(long, help_heading = "Executor")]
+    pub slurm_max_parallel: Option<usize>,
+    /// Further sbatch argument, passed through (repeatable).
+    #[arg(long, allow_hyphen_values = true, help_heading = "Executor")]
+    pub slurm_arg: Vec<String>,
+    /// Resubmissions of missing units before giving up.
+    #[arg(long, default_value_t = 2, help_heading = "Executor")]
+    pub slurm_retries: usize,
+}
+
+impl ExecArgs {
+    /// The executor for a run directory.
+    pub fn executor(&self, dir: &Path) -> crate::Result<Box<dyn crate::exec::Executor>> {
+        if self.executor == "local" {
+            return Ok(Box::new(crate::exec::local::Local));
+        }
+        let mut s = crate::exec::slurm::Slurm::new(dir)?;
+        s.partition = self.slurm_partition.clone();
+        s.time = self.slurm_time.clone();
+        s.cpus_per_task = self.slurm_cpus_per_task;
+        s.max_parallel = self.slurm_max_parallel;
+        s.extra = self.slurm_arg.clone();
+        s.retries = self.slurm_retries;
+        Ok(Box::new(s))
+    }
+}
+
+/// `bfqi-ga search`.
+#[derive(Debug, Args)]
+pub struct SearchArgs {
+    #[command(flatten)]
+    pub exec: ExecArgs,
+    /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub env: Option<String>,
+    /// Resume the search in this run directory (after Ctrl-C, a crash, kill -9 or a time budget).
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "preset", "quick", "population", "datasets", "iterations", "episodes", "seed", "out"])]
+    pub resume: Option<PathBuf>,
+    /// Overlay a preset (a name under searches/presets/ or a file); repeatable, applied in order.
+    #[arg(long)]
+    pub preset: Vec<String>,
+    /// A small, real search (the `quick` preset): about a minute on 2 cores.
+    #[arg(long)]
+    pub quick: bool,
+    /// Generations to run.
+    #[arg(long)]
+    pub generations: Option<usize>,
+    /// Individuals per generation.
+    #[arg(long)]
+    pub population: Option<usize>,
+    /// Search datasets per chromosome.
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// FQI iterations.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Episodes per search dataset.
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Master seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Wall-clock budget of this invocation, in hours (stops cleanly; resume later).
+    #[arg(long)]
+    pub max_hours: Option<f64>,
+    /// Stop after this many generations without improvement.
+    #[arg(long)]
+    pub stall_generations: Option<usize>,
+    /// Run directory (default: results/<env>/search-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// No progress output (the run directory still records everything).
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    pub exec: ExecArgs,
+    /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub env: Option<String>,
+    /// Tuned config: `thesis` (the thesis's GA optimum) or a search's best.json.
+    #[arg(long, default_value = "thesis")]
+    pub tuned: String,
+    /// Analysis: iterations, complexity, samples or all.
+    #[arg(long, default_value = "iterations", value_parser = ["iterations", "complexity", "samples", "all"])]
+    pub analysis: String,
+    /// Learner: et, mlp or both.
+    #[arg(long, default_value = "both", value_parser = ["et", "mlp", "both"])]
+    pub learner: String,
+    /// Datasets per point (overrides the spec).
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// Episodes per dataset (iterations and complexity analyses).
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// FQI iterations K.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Complexities, as `1..15` or `1,2,5`.
+    #[arg(long)]
+    pub complexities: Option<String>,
+    /// Dataset sizes of the sample analysis, in episodes: `10,25,50`.
+    #[arg(long, value_delimiter = ',')]
+    pub sizes: Option<Vec<usize>>,
+    /// Run directory (default: results/<env>/compare-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Resume the comparison in this run directory.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "out"])]
+    pub resume: Option<PathBuf>,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga batch`.
+#[derive(Debug, Args)]
+pub struct BatchArgs {
+    #[command(flatten)]
+    pub exec: ExecArgs,
+    /// The plan (e.g. searches/batches/overnight.json). Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub plan: Option<PathBuf>,
+    /// Resume the batch in this directory.
+    #[arg(long, value_name = "BATCH_DIR", conflicts_with_all = ["plan", "out"])]
+    pub resume: Option<PathBuf>,
+    /// Wall-clock budget of this invocation, in hours; stops cleanly between units.
+    #[arg(long, conflicts_with = "until")]
+    pub max_hours: Option<f64>,
+    /// Stop cleanly at this local time, HH:MM (the next time it comes round).
+    #[arg(long)]
+    pub until: Option<String>,
+    /// Batch directory (default: results/batches/<plan>-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga worker`.
+#[derive(Debug, Args)]
+pub struct WorkerArgs {
+    /// The run directory (on a shared file system).
+    pub dir: PathBuf,
+    /// The unit id (its result file stem).
+    pub unit: String,
+}
+
+/// `bfqi-ga report`.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// A comparison or search run directory.
+    pub dir: PathBuf,
+}
+
+/// `bfqi-ga reproduce`.
+#[derive(Debug, Args)]
+pub struct ReproduceArgs {
+    /// A search's best.json.
+    pub best: PathBuf,
+}
+
+/// `bfqi-ga status`.
+#[derive(Debug, Args)]
+pub struct StatusArgs {
+    /// Folder to scan (default: results).
+    #[arg(default_value = "results")]
+    pub dir: PathBuf,
+}
+
+/// `bfqi-ga bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// What to time.
+    #[arg(value_parser = ["learners", "fqi"])]
+    pub what: String,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// A Python with scikit-learn (and keras + jax) to run the reference scripts side by side.
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Folder of the reference scripts (sklearn_et.py, keras_mlp.py).
+    #[arg(long, default_value = "../shared/bench")]
+    pub reference_dir: PathBuf,
+}
+
 /// `bfqi-ga envs`.
 #[derive(Debug, Args)]
 pub struct EnvsArgs {
@@ -90,10 +367,17 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     match cli.command {
         Command::Dataset(a) => cmd_dataset(a),
         Command::Envs(a) => cmd_envs(a),
-        other => {
-            let name = format!("{other:?}");
-            let name = name.split('(').next().unwrap_or("").to_lowercase();
-            anyhow::bail!("`{name}` is not available in this build yet")
+        Command::Run(a) => cmd_run(*a),
+        Command::Bench(a) => cmd_bench(a),
+        Command::Search(a) => cmd_search(*a),
+        Command::Reproduce(a) => cmd_reproduce(a),
+        Command::Status(a) => cmd_status(a),
+        Command::Compare(a) => cmd_compare(*a),
+        Command::Report(a) => cmd_report(a),
+        Command::Batch(a) => cmd_batch(a),
+        Command::Worker(a) => {
+            crate::exec::worker(&a.dir, &a.unit)?;
+            Ok(ExitCode::SUCCESS)
         }
     }
 }
@@ -142,4 +426,361 @@ fn cmd_envs(a: EnvsArgs) -> Result<ExitCode> {
         println!("  settings: {}", settings.join(" "));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Applies `run`'s flags to a preset. Flags of the other learner are refused, not ignored.
+fn run_config(a: &RunArgs) -> Result<RunConfig> {
+    let (spec, _) = Spec::resolve(&a.env)?;
+    let algorithm = if a.algo == "fqi" { Algorithm::Fqi } else { Algorithm::Bfqi };
+    let preset = spec.preset(&a.learner).expect("clap restricts --learner");
+    let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, algorithm, preset);
+    match &mut cfg.learner {
+        LearnerConfig::ExtraTrees(p) => {
+            let mlp_flag = [a.hidden.is_some(), a.activation.is_some(), a.delta_min.is_some(), a.patience.is_some()];
+            anyhow::ensure!(
+                !mlp_flag.contains(&true) && a.learning_rate.is_none(),
+                "--hidden/--activation/--delta-min/--patience/--learning-rate apply to --learner mlp"
+            );
+            set(&mut p.n_trees, a.trees);
+            if let Some(d) = a.depth {
+                p.max_depth = Some(d);
+            }
+            set(&mut p.min_samples_split, a.min_split);
+            set(&mut p.min_samples_leaf, a.min_leaf);
+        }
+        LearnerConfig::Mlp(p) => {
+            let et_flag = [a.trees, a.depth, a.min_split, a.min_leaf];
+            anyhow::ensure!(
+                et_flag.iter().all(Option::is_none),
+                "--trees/--depth/--min-split/--min-leaf apply to --learner et"
+            );
+            if let Some(h) = &a.hidden {
+                p.hidden = h.clone();
+            }
+            if let Some(act) = &a.activation {
+                p.activation = serde_json::from_value::<Activation>(serde_json::Value::String(act.clone()))?;
+            }
+            set(&mut p.delta_min, a.delta_min);
+            set(&mut p.patience, a.patience);
+            set(&mut p.learning_rate, a.learning_rate);
+        }
+    }
+    if let Some(e) = &a.actions {
+        cfg.actions = if e == "input" { ActionEncoding::Input } else { ActionEncoding::PerAction };
+    }
+    set(&mut cfg.iterations, a.iterations);
+    set(&mut cfg.episodes, a.episodes);
+    set(&mut cfg.datasets, a.datasets);
+    set(&mut cfg.seed, a.seed);
+    set(&mut cfg.eval_every, a.eval_every);
+    cfg.validate().map_err(|e| anyhow::anyhow!("{e} (from the flags or {})", a.env))?;
+    Ok(cfg)
+}
+
+fn set<T>(slot: &mut T, v: Option<T>) {
+    if let Some(v) = v {
+        *slot = v;
+    }
+}
+
+fn cmd_run(a: RunArgs) -> Result<ExitCode> {
+    let cfg = run_config(&a)?;
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let bar = indicatif::ProgressBar::new((cfg.datasets * cfg.iterations) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} iterations  ETA {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    let report = experiment::run(&cfg, &|_, _| bar.inc(1))?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        let l = &cfg.learner;
+        println!(
+            "{} · {} · {} (complexity {}) · {:?} actions · K={} · {} datasets × {} episodes · seed {}",
+            cfg.env.env().name(),
+            cfg.algorithm.name(),
+            l.short(),
+            l.complexity().map_or("unbounded".into(), |c| c.to_string()),
+            cfg.actions,
+            cfg.iterations,
+            cfg.datasets,
+            cfg.episodes,
+            cfg.seed
+        );
+        print!("{}", report.table());
+    }
+    if let Some(dir) = &a.out {
+        store::write_json(&dir.join("run.json"), &report)?;
+        let csv = report.csv();
+        store::write_atomic(&dir.join("run.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
+        eprintln!("wrote {}", dir.display());
+    }
+    let diverged = report.datasets.iter().filter(|d| d.record.diverged.is_some()).count();
+    if diverged > 0 {
+        eprintln!("{diverged} of {} datasets diverged (recorded in the results)", cfg.datasets);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
+    let figures = match a.what.as_str() {
+        "learners" => {
+            let reference =
+                crate::bench::PythonReference { python: a.python.clone(), scripts: a.reference_dir.clone() };
+            crate::bench::learners(&reference, a.json)?
+        }
+        _ => crate::bench::fqi(a.json)?,
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&figures)?);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Ctrl-C: the first stops cleanly after the running units, the second exits at once.
+fn interrupt_flag() -> &'static AtomicBool {
+    static FLAG: AtomicBool = AtomicBool::new(false);
+    static INSTALL: std::sync::Once = std::sync::Once::new();
+    INSTALL.call_once(|| {
+        let _ = ctrlc::set_handler(|| {
+            if FLAG.swap(true, Ordering::SeqCst) {
+                eprintln!("\naborted");
+                std::process::exit(130);
+            }
+            eprintln!("\nstopping after the running units finish (Ctrl-C again to abort; resume later)");
+        });
+    });
+    &FLAG
+}
+
+fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
+    use crate::ga::search::{self, SearchOverrides};
+    let dir = if let Some(dir) = &a.resume {
+        search::extend(dir, a.generations, a.stall_generations)?;
+        dir.clone()
+    } else {
+        let mut presets: Vec<String> = if a.quick { vec!["quick".into()] } else { vec![] };
+        presets.extend(a.preset.iter().cloned());
+        let o = SearchOverrides {
+            generations: a.generations,
+            population: a.population,
+            datasets: a.datasets,
+            iterations: a.iterations,
+            episodes: a.episodes,
+            seed: a.seed,
+            stall_generations: a.stall_generations,
+        };
+        let name = a.env.as_deref().expect("clap requires ENV without --resume");
+        search::prepare(name, &presets, &o, a.out.as_deref(), Path::new("results"))?
+    };
+    let max_hours = match a.max_hours {
+        Some(h) => {
+            anyhow::ensure!(h.is_finite() && h > 0.0, "invalid --max-hours = {h}: must be > 0");
+            Some(h)
+        }
+        None => crate::ga::search::load_spec(&dir)?.search.stop.max_hours,
+    };
+    let controls = crate::ga::search::Controls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
+    let exec = a.exec.executor(&dir)?;
+    let ending = crate::ga::search::run(&dir, exec.as_ref(), &controls)?;
+    match ending {
+        crate::ga::search::Ending::Finished(reason) => {
+            eprintln!("finished ({reason}): {}", dir.display());
+            eprintln!("tuned config: {}", dir.join("best.json").display());
+            Ok(ExitCode::SUCCESS)
+        }
+        crate::ga::search::Ending::Interrupted(reason) => {
+            eprintln!("stopped ({reason}): resume with  bfqi-ga search --resume {}", dir.display());
+            Ok(if interrupt_flag().load(Ordering::SeqCst) { ExitCode::from(130) } else { ExitCode::SUCCESS })
+        }
+    }
+}
+
+fn cmd_reproduce(a: ReproduceArgs) -> Result<ExitCode> {
+    let t = crate::tuned::TunedConfig::load(&a.best)?;
+    let r = crate::ga::search::reproduce(&t, &a.best)?;
+    let show = |v: Option<f64>| v.map_or("−∞ (diverged)".to_string(), |x| format!("{x:?}"));
+    if r.matches() {
+        println!("reproduced: fitness {} matches bit for bit ({} datasets)", show(r.derived), t.scores.len());
+        Ok(ExitCode::SUCCESS)
+    } else {
+        println!("NOT reproduced: recorded fitness {}, derived {}", show(r.recorded), show(r.derived));
+        for (d, rec, der) in &r.differences {
+            println!("  dataset {d}: recorded {}, derived {}", show(*rec), show(*der));
+        }
+        Ok(ExitCode::from(1))
+    }
+}
+
+fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
+    let mut dirs = Vec::new();
+    let mut stack = vec![a.dir.clone()];
+    while let Some(d) = stack.pop() {
+        if d.join("state.json").is_file() {
+            dirs.push(d);
+            continue;
+        }
+        if let Ok(entries) = std::fs::read_dir(&d) {
+            stack.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+        }
+    }
+    dirs.sort();
+    if dirs.is_empty() {
+        println!("no runs under {}", a.dir.display());
+    }
+    for d in dirs {
+        let st: crate::ga::search::RunState = store::read_json(&d.join("state.json"))?;
+        let env = store::read_json::<serde_json::Value>(&d.join("run.json"))
+            .ok()
+            .and_then(|v| v["env"].as_str().map(String::from))
+            .unwrap_or_else(|| "?".into());
+        let state = match st.state.as_str() {
+            "running" if !store::RunLock::is_held(&d) => "interrupted".to_string(),
+            s => s.to_string(),
+        };
+        let best = st.best.map_or("—".into(), |b| {
+            format!(
+                "{} δ_min {} patience {}",
+                serde_json::to_value(b.activation).unwrap_or_default().as_str().unwrap_or("?"),
+                b.delta_min,
+                b.patience
+            )
+        });
+        println!(
+            "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}  {}  {}",
+            env,
+            state,
+            st.generation,
+            st.generations,
+            st.best_fitness.map_or("—".into(), |f| format!("{f:.4}")),
+            best,
+            d.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Parses `1..15` (inclusive) or `1,2,5`.
+fn parse_list(text: &str) -> Result<Vec<usize>> {
+    let bad = || anyhow::anyhow!("invalid --complexities = {text}: must be like 1..15 or 1,2,5 (each ≥ 1)");
+    let v: Vec<usize> = if let Some((a, b)) = text.split_once("..") {
+        let (a, b): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+        (a..=b).collect()
+    } else {
+        text.split(',').map(|x| x.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?
+    };
+    anyhow::ensure!(!v.is_empty() && v.iter().all(|&c| c >= 1), bad());
+    Ok(v)
+}
+
+fn cmd_compare(a: CompareArgs) -> Result<ExitCode> {
+    use crate::compare::{self, Overrides};
+    let dir = if let Some(d) = &a.resume {
+        compare::load(d)?;
+        d.clone()
+    } else {
+        let o = Overrides {
+            datasets: a.datasets,
+            episodes: a.episodes,
+            iterations: a.iterations,
+            complexities: a.complexities.as_deref().map(parse_list).transpose()?,
+            sizes: a.sizes.clone(),
+        };
+        let name = a.env.as_deref().expect("clap requires ENV without --resume");
+        compare::prepare(name, &a.tuned, &a.analysis, &a.learner, &o, a.out.as_deref(), Path::new("results"))?
+    };
+    let exec = a.exec.executor(&dir)?;
+    let complete = compare::run(&dir, exec.as_ref(), interrupt_flag(), None, a.quiet)?;
+    if !complete {
+        eprintln!("stopped: resume with  bfqi-ga compare --resume {}", dir.display());
+        return Ok(ExitCode::from(130));
+    }
+    let out = crate::report::comparison::regenerate(&dir)?;
+    for c in &out.claims {
+        let mark = if c.verdict == crate::report::claims::Verdict::Supported { "supported" } else { "NOT supported" };
+        eprintln!("claim {mark}: {} ({})", c.statement, c.evidence);
+    }
+    eprintln!("report: {}", dir.join("report.md").display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_report(a: ReportArgs) -> Result<ExitCode> {
+    if a.dir.join("compare.json").is_file() {
+        let out = crate::report::comparison::regenerate(&a.dir)?;
+        eprintln!("wrote {} files into {}", out.files.len(), a.dir.display());
+    } else if a.dir.join("spec.json").is_file() {
+        let n = crate::ga::search::report(&a.dir)?;
+        eprintln!(
+            "wrote fitness.csv, fitness.png, fitness.svg and report.md for {n} generations into {}",
+            a.dir.display()
+        );
+    } else {
+        anyhow::bail!("{}: not a comparison or search run directory (no compare.json or spec.json)", a.dir.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Hours from now until the next local `HH:MM` (the offset from UTC is asked of `date +%z`; UTC if
+/// that is unavailable).
+fn hours_until(hhmm: &str) -> Result<f64> {
+    let bad = || anyhow::anyhow!("invalid --until = {hhmm}: must be HH:MM (24-hour clock)");
+    let (h, m) = hhmm.split_once(':').ok_or_else(bad)?;
+    let (h, m): (u64, u64) = (h.parse().map_err(|_| bad())?, m.parse().map_err(|_| bad())?);
+    anyhow::ensure!(h < 24 && m < 60, bad());
+    let offset_s: i64 = std::process::Command::new("date")
+        .arg("+%z")
+        .output()
+        .ok()
+        .and_then(|o| String::from_utf8(o.stdout).ok())
+        .and_then(|z| {
+            let z = z.trim();
+            let sign = if z.starts_with('-') { -1 } else { 1 };
+            let digits = z.trim_start_matches(['+', '-']);
+            let (hh, mm) = (digits.get(..2)?.parse::<i64>().ok()?, digits.get(2..4)?.parse::<i64>().ok()?);
+            Some(sign * (hh * 3600 + mm * 60))
+        })
+        .unwrap_or(0);
+    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH)?.as_secs() as i64 + offset_s;
+    let today = now.rem_euclid(86_400);
+    let target = (h * 3600 + m * 60) as i64;
+    let wait = (target - today).rem_euclid(86_400);
+    Ok(wait as f64 / 3600.0)
+}
+
+fn cmd_batch(a: BatchArgs) -> Result<ExitCode> {
+    let dir = match (&a.resume, &a.plan) {
+        (Some(d), _) => d.clone(),
+        (None, Some(plan)) => crate::batch::create(plan, Path::new("results"), a.out.as_deref())?,
+        (None, None) => unreachable!("clap requires PLAN without --resume"),
+    };
+    let max_hours = match (&a.max_hours, &a.until) {
+        (Some(h), _) => {
+            anyhow::ensure!(h.is_finite() && *h > 0.0, "invalid --max-hours = {h}: must be > 0");
+            Some(*h)
+        }
+        (None, Some(t)) => Some(hours_until(t)?),
+        _ => None,
+    };
+    if !a.quiet {
+        eprintln!("batch → {}", dir.display());
+    }
+    let controls = crate::batch::BatchControls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
+    let ending = crate::batch::run(&dir, &|d: &Path| a.exec.executor(d), &controls)?;
+    eprintln!("summary: {}", dir.join("summary.md").display());
+    match ending {
+        crate::batch::BatchEnding::Done { failed: 0 } => Ok(ExitCode::SUCCESS),
+        crate::batch::BatchEnding::Done { failed } => {
+            eprintln!("{failed} job(s) failed (see the summary)");
+            Ok(ExitCode::from(1))
+        }
+        crate::batch::BatchEnding::Stopped(reason) => {
+            eprintln!("stopped ({reason}): resume with  bfqi-ga batch --resume {}", dir.display());
+            Ok(ExitCode::SUCCESS)
+        }
+    }
 }

@@ -3,14 +3,24 @@
 //! Data flows one way: spec → datasets → learner → FQI → evaluation → fitness → GA → tuned config →
 //! comparison → report. Each module is one of those concepts.
 
+pub mod batch;
+pub mod bench;
 pub mod cli;
+pub mod compare;
 pub mod dataset;
 pub mod env;
 pub mod error;
 pub mod eval;
+pub mod exec;
+pub mod experiment;
 pub mod fqi;
+pub mod ga;
 pub mod learn;
+pub mod progress;
+pub mod report;
 pub mod rng;
+pub mod spec;
 pub mod store;
+pub mod tuned;
 
 pub use error::{Error, Result};

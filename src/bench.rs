@@ -1,0 +1,320 @@
+//! Benchmarks (`bfqi-ga bench`): figures and ratios, never assertions.
+//!
+//! `bench learners` times the Extra-Trees and the MLP on simulator data in the thesis's settings and,
+//! given a Python with scikit-learn / Keras, runs the reference scripts of `shared/bench/` on the
+//! same data in the same run for side-by-side ratios. `bench fqi` times whole FQI / B-FQI runs.
+
+use crate::dataset::{self, Dataset, dataset_seed};
+use crate::env::EnvConfig;
+use crate::error::{Error, Result};
+use crate::eval::eval_seed;
+use crate::fqi::{Algorithm, Fqi, FqiSettings};
+use crate::learn::actions::{ActionEncoding, Encoded};
+use crate::learn::extra_trees::ExtraTreesParams;
+use crate::learn::mlp::{Activation, MlpParams};
+use crate::learn::{Learner, Regressor, Rows};
+use crate::rng;
+use serde::Serialize;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// Where to find the Python reference, if any.
+#[derive(Debug, Clone, Default)]
+pub struct PythonReference {
+    /// The Python interpreter with scikit-learn (and Keras + JAX for the MLP).
+    pub python: Option<PathBuf>,
+    /// The folder holding `sklearn_et.py` and `keras_mlp.py`.
+    pub scripts: PathBuf,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn rows_input(d: &Dataset) -> Vec<f64> {
+    let od = d.obs_dim;
+    let mut x = Vec::with_capacity(d.len() * (od + 1));
+    for i in 0..d.len() {
+        x.extend_from_slice(&d.state[i * od..(i + 1) * od]);
+        x.push(d.action[i]);
+    }
+    x
+}
+
+fn data(env: &str, episodes: usize) -> Result<(EnvConfig, Dataset)> {
+    let c = EnvConfig::by_name(env)?;
+    let d = dataset::collect(c.env(), episodes, dataset_seed(1, "compare", 0))?;
+    Ok((c, d))
+}
+
+fn run_python(reference: &PythonReference, script: &str, args: &[String]) -> Option<Value> {
+    let python = reference.python.as_ref()?;
+    let path = reference.scripts.join(script);
+    let out = Command::new(python).arg(&path).args(args).output().ok()?;
+    if !out.status.success() {
+        eprintln!(
+            "  (reference {script} failed: {})",
+            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
+        );
+        return None;
+    }
+    let text = String::from_utf8_lossy(&out.stdout);
+    serde_json::from_str(text.lines().last()?).ok()
+}
+
+/// One Extra-Trees setting's figures.
+#[derive(Debug, Serialize)]
+struct EtFigures {
+    setting: &'static str,
+    rows: usize,
+    features: usize,
+    fit_s_median: f64,
+    predict_rows_per_s: f64,
+    single_row_predict_us: f64,
+    reference: Option<Value>,
+    fit_speedup: Option<f64>,
+    single_row_speedup: Option<f64>,
+}
+
+fn bench_et(
+    setting: &'static str,
+    env: &str,
+    episodes: usize,
+    params: ExtraTreesParams,
+    reference: &PythonReference,
+    tmp: &Path,
+) -> Result<EtFigures> {
+    let (_, d) = data(env, episodes)?;
+    let x = rows_input(&d);
+    let cols = d.obs_dim + 1;
+    let rows = Rows::new(&x, cols)?;
+    let mut fits = Vec::new();
+    let mut model = None;
+    for r in 0..3 {
+        let t = Instant::now();
+        let (m, _) = params.fit(rows, &d.reward, r)?;
+        fits.push(t.elapsed().as_secs_f64());
+        model = Some(m);
+    }
+    let m = model.expect("three fits");
+    let mut out = vec![0.0; d.len()];
+    let t = Instant::now();
+    m.predict_into(rows, &mut out);
+    let predict = t.elapsed().as_secs_f64();
+    let n_single = 2000.min(d.len());
+    let t = Instant::now();
+    let mut acc = 0.0;
+    for i in 0..n_single {
+        acc += m.predict_row(rows.row(i));
+    }
+    let single = t.elapsed().as_secs_f64() / n_single as f64;
+    std::hint::black_box(acc);
+
+    let reference = if reference.python.is_some() {
+        let csv = tmp.join(format!("{env}.csv"));
+        d.write_csv(&csv)?;
+        let args = vec![
+            csv.display().to_string(),
+            "--trees".into(),
+            params.n_trees.to_string(),
+            "--depth".into(),
+            params.max_depth.map_or("0".into(), |v| v.to_string()),
+            "--min-split".into(),
+            params.min_samples_split.to_string(),
+            "--min-leaf".into(),
+            params.min_samples_leaf.to_string(),
+            "--jobs".into(),
+            rayon::current_num_threads().to_string(),
+        ];
+        run_python(reference, "sklearn_et.py", &args)
+    } else {
+        None
+    };
+    let fit_s_median = median(fits);
+    let fit_speedup = reference.as_ref().and_then(|r| r["fit_s_median"].as_f64()).map(|s| s / fit_s_median);
+    let single_row_speedup = reference.as_ref().and_then(|r| r["single_row_predict_s"].as_f64()).map(|s| s / single);
+    Ok(EtFigures {
+        setting,
+        rows: d.len(),
+        features: cols,
+        fit_s_median,
+        predict_rows_per_s: d.len() as f64 / predict,
+        single_row_predict_us: single * 1e6,
+        reference,
+        fit_speedup,
+        single_row_speedup,
+    })
+}
+
+/// Benchmarks the learners; prints a table, or JSON with `json`.
+pub fn learners(reference: &PythonReference, json: bool) -> Result<Value> {
+    let tmp = std::env::temp_dir().join(format!("bfqi-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    let threads = rayon::current_num_threads();
+    if !json {
+        println!("bench learners · {threads} thread(s)");
+    }
+    let bicycle = ExtraTreesParams { n_trees: 50, max_depth: Some(17), min_samples_split: 8, min_samples_leaf: 4 };
+    let pendulum = ExtraTreesParams { n_trees: 30, max_depth: Some(13), min_samples_split: 4, min_samples_leaf: 2 };
+    let mut et = Vec::new();
+    for (name, env, episodes, p) in [
+        ("bicycle (50 trees, depth 17)", "bicycle", 1000, bicycle),
+        ("pendulum (30 trees, depth 13)", "pendulum", 2000, pendulum),
+    ] {
+        let f = bench_et(name, env, episodes, p, reference, &tmp)?;
+        if !json {
+            println!(
+                "  extra-trees {:<30} {:>7} rows  fit {:>7.3} s  predict {:>6.2} M rows/s  single row {:>6.2} µs{}",
+                f.setting,
+                f.rows,
+                f.fit_s_median,
+                f.predict_rows_per_s / 1e6,
+                f.single_row_predict_us,
+                match (f.fit_speedup, f.single_row_speedup) {
+                    (Some(a), Some(b)) => format!("  | vs scikit-learn: fit {a:.1}×, single row {b:.0}×"),
+                    _ => String::new(),
+                }
+            );
+        }
+        et.push(f);
+    }
+
+    // MLP: [10, 10] sigmoid on the bicycle data, batch 2000.
+    let (_, d) = data("bicycle", 1000)?;
+    let x = rows_input(&d);
+    let cols = d.obs_dim + 1;
+    let rows = Rows::new(&x, cols)?;
+    let base = MlpParams { hidden: vec![10, 10], activation: Activation::Sigmoid, ..MlpParams::default() };
+    let epochs = 40;
+    let fixed = MlpParams { max_epochs: epochs, patience: usize::MAX / 2, delta_min: 0.0, ..base.clone() };
+    let t = Instant::now();
+    let (_, info) = fixed.fit(rows, &d.reward, 1)?;
+    let per_epoch = t.elapsed().as_secs_f64() / info.epochs as f64;
+    let n_val = (d.len() as f64 * fixed.validation_fraction) as usize;
+    let n_train = d.len() - n_val;
+    let (h1, h2) = (10.0, 10.0);
+    let macs = cols as f64 * h1 + h1 * h2 + h2;
+    let flops_per_epoch = 2.0 * macs * (3.0 * n_train as f64 + n_val as f64);
+    let gflops = flops_per_epoch / per_epoch / 1e9;
+    let early = MlpParams { delta_min: 0.011, patience: 75, ..base };
+    let t = Instant::now();
+    let (_, info_es) = early.fit(rows, &d.reward, 2)?;
+    let es_seconds = t.elapsed().as_secs_f64();
+    let keras = if reference.python.is_some() {
+        let csv = tmp.join("bicycle.csv");
+        if !csv.exists() {
+            d.write_csv(&csv)?;
+        }
+        let args =
+            [csv.display().to_string(), "--hidden".into(), "10,10".into(), "--activation".into(), "sigmoid".into()];
+        run_python(reference, "keras_mlp.py", &args)
+    } else {
+        None
+    };
+    let epoch_speedup = keras.as_ref().and_then(|k| k["epoch_ms_median"].as_f64()).map(|ms| ms / (per_epoch * 1e3));
+    let fit_speedup = keras.as_ref().and_then(|k| k["early_stopped_fit_s"].as_f64()).map(|s| s / es_seconds);
+    if !json {
+        println!(
+            "  mlp [10, 10] sigmoid on {} rows: {:.3} ms/epoch ({:.1} GFLOP/s); early-stopped fit (δ 0.011, patience 75): {:.2} s, {} epochs{}",
+            d.len(),
+            per_epoch * 1e3,
+            gflops,
+            es_seconds,
+            info_es.epochs,
+            match (epoch_speedup, fit_speedup) {
+                (Some(a), Some(b)) => format!("  | vs Keras: epoch {a:.1}×, early-stopped fit {b:.1}×"),
+                _ => String::new(),
+            }
+        );
+        if reference.python.is_none() {
+            println!("  (no --python given: pass one with scikit-learn, keras and jax for side-by-side ratios)");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+    Ok(json!({
+        "threads": threads,
+        "extra_trees": et,
+        "mlp": {
+            "rows": d.len(), "inputs": cols, "hidden": [10, 10], "activation": "sigmoid",
+            "ms_per_epoch": per_epoch * 1e3, "gflops": gflops, "flops_per_epoch": flops_per_epoch,
+            "early_stopped_fit_s": es_seconds, "early_stopped_epochs": info_es.epochs,
+            "reference": keras, "epoch_speedup": epoch_speedup, "fit_speedup": fit_speedup,
+        }
+    }))
+}
+
+/// A full-run figure of `bench fqi`.
+#[derive(Debug, Serialize)]
+struct FqiFigures {
+    run: String,
+    seconds: f64,
+    iterations: usize,
+    final_score: Option<f64>,
+    last_over_second_iteration: f64,
+    python_reference_s: f64,
+    speedup: f64,
+}
+
+/// Benchmarks whole FQI / B-FQI runs with Extra-Trees; prints a table, or JSON with `json`.
+pub fn fqi(json: bool) -> Result<Value> {
+    // (env, algorithm, depth, trees, split, leaf, K, episodes, encoding, scikit-learn reference seconds
+    // measured on this machine class with n_jobs = 2, as given in the learners/FQI issues).
+    let runs = [
+        ("bicycle", Algorithm::Fqi, 17, 50, 8, 4, 20, 1000, ActionEncoding::Input, 88.0),
+        ("bicycle", Algorithm::Bfqi, 17, 50, 8, 4, 20, 1000, ActionEncoding::Input, 91.0),
+        ("cartpole", Algorithm::Bfqi, 6, 30, 4, 2, 10, 2000, ActionEncoding::PerAction, 2.4),
+        ("pendulum", Algorithm::Fqi, 13, 30, 4, 2, 20, 2000, ActionEncoding::Input, 133.0),
+    ];
+    let mut figures = Vec::new();
+    if !json {
+        println!(
+            "bench fqi · {} thread(s) · one dataset per run, every iteration evaluated",
+            rayon::current_num_threads()
+        );
+    }
+    for (env, algorithm, depth, trees, split, leaf, k, episodes, encoding, reference) in runs {
+        let t = Instant::now();
+        let (c, d) = data(env, episodes)?;
+        let e = c.env();
+        let enc = Encoded::new(&d, e.actions(), encoding)?;
+        let p = ExtraTreesParams {
+            n_trees: trees,
+            max_depth: Some(depth),
+            min_samples_split: split,
+            min_samples_leaf: leaf,
+        };
+        let settings = FqiSettings { algorithm, iterations: k, eval_every: 1 };
+        let rec = Fqi::new(e, &d, &enc, &p, settings, rng::derive(1, "fit", &[0]), eval_seed(1, 0)).run(|_| {})?;
+        let seconds = t.elapsed().as_secs_f64();
+        let it = |i: usize| {
+            let r = &rec.iterations[i];
+            r.fit_seconds + r.predict_seconds
+        };
+        let ratio = if rec.iterations.len() >= 2 { it(rec.iterations.len() - 1) / it(1) } else { f64::NAN };
+        let f = FqiFigures {
+            run: format!("{env} {} depth {depth} K={k} ({episodes} episodes)", algorithm.name()),
+            seconds,
+            iterations: rec.iterations.len(),
+            final_score: rec.final_score(),
+            last_over_second_iteration: ratio,
+            python_reference_s: reference,
+            speedup: reference / seconds,
+        };
+        if !json {
+            println!(
+                "  {:<42} {:>8.2} s  (scikit-learn reference {:>5.1} s: {:>5.1}×)  fit+predict iteration K / iteration 2: {:.2}  final score {}",
+                f.run,
+                f.seconds,
+                f.python_reference_s,
+                f.speedup,
+                f.last_over_second_iteration,
+                f.final_score.map_or("—".into(), |s| format!("{s:.3}"))
+            );
+        }
+        figures.push(f);
+    }
+    Ok(json!({ "threads": rayon::current_num_threads(), "runs": figures }))
+}
