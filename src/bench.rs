@@ -318,3 +318,57 @@ pub fn fqi(json: bool) -> Result<Value> {
     }
     Ok(json!({ "threads": rayon::current_num_threads(), "runs": figures }))
 }
+
+/// Search throughput: the units of one generation (a small cart-pole search) evaluated on a 1-thread
+/// and a 2-thread pool; prints units per second and the speed-up.
+pub fn search(json: bool) -> Result<Value> {
+    use crate::ga::operators::initial_population;
+    use crate::ga::search::Evaluator;
+    use crate::spec::Spec;
+    use rayon::prelude::*;
+    let (mut spec, _) = Spec::resolve("cartpole")?;
+    spec.search.episodes = 300;
+    spec.search.iterations = 5;
+    spec.search.datasets = 2;
+    spec.search.network.max_epochs = 400;
+    let population = initial_population(spec.seed, &spec.search.genes, 8);
+    let units: Vec<(usize, usize)> =
+        (0..population.len()).flat_map(|c| (0..spec.search.datasets).map(move |d| (c, d))).collect();
+    let mut rows = Vec::new();
+    let mut first = None;
+    for threads in [1, 2] {
+        let pool =
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| Error::Data(e.to_string()))?;
+        let ev = Evaluator::new(spec.clone(), Path::new("."));
+        // Datasets are collected once per search; keep that out of the figure.
+        for d in 0..spec.search.datasets {
+            ev.evaluate(&population[0], d)?;
+        }
+        let t = Instant::now();
+        let scores: Vec<Option<f64>> = pool.install(|| {
+            units
+                .par_iter()
+                .with_max_len(1)
+                .map(|&(c, d)| ev.evaluate(&population[c], d).map(|u| u.score))
+                .collect::<Result<_>>()
+        })?;
+        let secs = t.elapsed().as_secs_f64();
+        match &first {
+            None => first = Some((secs, scores)),
+            Some((_, s)) if *s != scores => return Err(Error::Data("scores differ between 1 and 2 threads".into())),
+            _ => {}
+        }
+        rows.push((threads, secs, units.len() as f64 / secs));
+    }
+    let speedup = rows[0].1 / rows[1].1;
+    if !json {
+        println!("bench search · cart-pole, {} units (8 chromosomes × 2 datasets, K = 5, 300 episodes)", units.len());
+        for (t, s, ups) in &rows {
+            println!("  {t} thread(s): {s:.2} s, {ups:.2} units/s");
+        }
+        println!("  speed-up 1 → 2 threads: {speedup:.2}× (identical scores)");
+    }
+    Ok(
+        json!({"units": units.len(), "runs": rows.iter().map(|(t, s, u)| json!({"threads": t, "seconds": s, "units_per_second": u})).collect::<Vec<_>>(), "speedup": speedup}),
+    )
+}

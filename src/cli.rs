@@ -337,7 +337,7 @@ pub struct StatusArgs {
 #[derive(Debug, Args)]
 pub struct BenchArgs {
     /// What to time.
-    #[arg(value_parser = ["learners", "fqi"])]
+    #[arg(value_parser = ["learners", "fqi", "search"])]
     pub what: String,
     /// Print JSON instead of the table.
     #[arg(long)]
@@ -534,6 +534,7 @@ fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
                 crate::bench::PythonReference { python: a.python.clone(), scripts: a.reference_dir.clone() };
             crate::bench::learners(&reference, a.json)?
         }
+        "search" => crate::bench::search(a.json)?,
         _ => crate::bench::fqi(a.json)?,
     };
     if a.json {
