@@ -365,7 +365,7 @@ mod tests {
         let (mut v, _) = Spec::resolve_value("cartpole").unwrap();
         merge_patch(&mut v, &load_preset("quick").unwrap().0);
         let s = Spec::from_value(v, &origin).unwrap();
-        assert_eq!((s.search.ga.population, s.search.stop.generations, s.search.stop.stall_generations), (6, 2, None));
+        assert_eq!((s.search.ga.population, s.search.stop.generations, s.search.stop.stall_generations), (8, 2, None));
         assert!(load_preset("nonesuch").unwrap_err().to_string().contains("quick"));
     }
 
