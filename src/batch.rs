@@ -173,14 +173,7 @@ impl Plan {
 }
 
 fn deser<T: serde::de::DeserializeOwned>(v: &serde_json::Value, label: &str, origin: &Path) -> Result<T> {
-    serde_path_to_error::deserialize(v.clone()).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner().to_string();
-        Error::File {
-            path: origin.to_path_buf(),
-            message: if path == "." { format!("{label}: {inner}") } else { format!("{label}: field {path}: {inner}") },
-        }
-    })
+    crate::error::from_json(v.clone(), origin, &format!("{label}: "))
 }
 
 /// Where each job stands (`batch.json`).

@@ -68,6 +68,21 @@ impl Error {
     }
 }
 
+/// Deserialises a JSON value read from `origin`; an error names the file and the field path
+/// (`field search.ga.population: invalid type …`), after `context` (e.g. `job 2 (c): `).
+pub fn from_json<T: serde::de::DeserializeOwned>(
+    value: serde_json::Value,
+    origin: &std::path::Path,
+    context: &str,
+) -> Result<T> {
+    serde_path_to_error::deserialize(value).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner().to_string();
+        let message = if path == "." { format!("{context}{inner}") } else { format!("{context}field {path}: {inner}") };
+        Error::File { path: origin.to_path_buf(), message }
+    })
+}
+
 /// The library's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 

@@ -298,11 +298,7 @@ impl Spec {
 
     /// Deserialises and validates a JSON value; `origin` names it in errors.
     pub fn from_value(value: serde_json::Value, origin: &Path) -> Result<Spec> {
-        let spec: Spec = serde_path_to_error::deserialize(value).map_err(|e| {
-            let path = e.path().to_string();
-            let inner = e.into_inner().to_string();
-            file_error(origin, if path == "." { inner } else { format!("field {path}: {inner}") })
-        })?;
+        let spec: Spec = crate::error::from_json(value, origin, "")?;
         spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
         Ok(spec)
     }

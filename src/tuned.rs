@@ -97,11 +97,7 @@ impl TunedConfig {
     fn parse(text: &str, origin: &Path) -> Result<TunedConfig> {
         let file_err = |message: String| Error::File { path: origin.to_path_buf(), message };
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_err(e.to_string()))?;
-        let t: TunedConfig = serde_path_to_error::deserialize(value).map_err(|e| {
-            let path = e.path().to_string();
-            let inner = e.into_inner().to_string();
-            file_err(if path == "." { inner } else { format!("field {path}: {inner}") })
-        })?;
+        let t: TunedConfig = crate::error::from_json(value, origin, "")?;
         t.validate().map_err(|e| file_err(e.to_string()))?;
         Ok(t)
     }
