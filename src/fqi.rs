@@ -212,7 +212,9 @@ impl<'a, L: Learner> Fqi<'a, L> {
 
         let t0 = Instant::now();
         let seed = rng::derive(self.fit_seed, "member", &[k as u64]);
-        let (member, info) = self.enc.fit(self.learner, &self.fit_target, seed)?;
+        // The member's predictions on the training rows come with the fit (trees know each row's
+        // leaf), so they count as fit time.
+        let (member, info) = self.enc.fit_predict(self.learner, &self.fit_target, seed, &mut self.p_train)?;
         self.fits += 1;
         let fit_seconds = t0.elapsed().as_secs_f64();
         if info.stop == StopReason::NonFinite {
@@ -220,7 +222,6 @@ impl<'a, L: Learner> Fqi<'a, L> {
         }
 
         let t1 = Instant::now();
-        self.enc.predict_train(&member, &mut self.p_train);
         self.enc.predict_next(&member, &mut self.p_next);
         if bfqi {
             add(&mut self.q_train, &self.p_train);

@@ -114,25 +114,37 @@ impl Encoded {
         }
     }
 
-    /// Fits one Q-function member on targets `y` (one per transition). With `per_action`, model j is
-    /// fitted on action j's transitions with the seed `derive(seed, "action", [j])`.
-    pub fn fit<L: Learner>(&self, learner: &L, y: &[f64], seed: u64) -> Result<(QModel<L::Model>, FitInfo)> {
+    /// Fits one Q-function member on targets `y` (one per transition) and leaves its predictions on
+    /// the training rows in `out` (`out[i] = Q(x_i, a_i)`, as [`Encoded::predict_train`] would).
+    /// With `per_action`, model j is fitted on action j's transitions with the seed
+    /// `derive(seed, "action", [j])`.
+    pub fn fit_predict<L: Learner>(
+        &self,
+        learner: &L,
+        y: &[f64],
+        seed: u64,
+        out: &mut [f64],
+    ) -> Result<(QModel<L::Model>, FitInfo)> {
         match self.encoding {
             ActionEncoding::Input => {
-                let (m, info) = learner.fit(Rows::new(&self.train, self.n_inputs())?, y, seed)?;
+                let (m, info) = learner.fit_predict(Rows::new(&self.train, self.n_inputs())?, y, seed, out)?;
                 Ok((QModel::Input(m), info))
             }
             ActionEncoding::PerAction => {
                 let mut models = Vec::with_capacity(self.actions.len());
                 let mut info = FitInfo { epochs: 0, stop: StopReason::NotIterative };
-                let mut ys = Vec::new();
+                let (mut ys, mut buf) = (Vec::new(), Vec::new());
                 for j in 0..self.actions.len() {
                     let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
                     ys.clear();
                     ys.extend(self.train_index[lo..hi].iter().map(|&i| y[i]));
+                    buf.resize(hi - lo, 0.0);
                     let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
-                    let (m, fi) =
-                        learner.fit(Rows::new(x, self.obs_dim)?, &ys, rng::derive(seed, "action", &[j as u64]))?;
+                    let seed_j = rng::derive(seed, "action", &[j as u64]);
+                    let (m, fi) = learner.fit_predict(Rows::new(x, self.obs_dim)?, &ys, seed_j, &mut buf)?;
+                    for (k, &i) in self.train_index[lo..hi].iter().enumerate() {
+                        out[i] = buf[k];
+                    }
                     info.epochs += fi.epochs;
                     // Any non-finite fit makes the member diverged; otherwise report the last reason.
                     if info.stop != StopReason::NonFinite {

@@ -60,18 +60,51 @@ impl Learner for ExtraTreesParams {
     }
 
     fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(ExtraTrees, FitInfo)> {
+        self.fit_impl(x, y, seed, None)
+    }
+
+    /// Each tree records the leaf every training row lands in while it is built (the rows are
+    /// physically partitioned anyway), so the in-sample prediction is a sum of leaf values, added
+    /// in tree order exactly as `predict_into` adds them: no walk.
+    fn fit_predict(&self, x: Rows<'_>, y: &[f64], seed: u64, out: &mut [f64]) -> Result<(ExtraTrees, FitInfo)> {
+        assert_eq!(out.len(), x.n_rows(), "one output per row");
+        self.fit_impl(x, y, seed, Some(out))
+    }
+}
+
+impl ExtraTreesParams {
+    fn fit_impl(&self, x: Rows<'_>, y: &[f64], seed: u64, out: Option<&mut [f64]>) -> Result<(ExtraTrees, FitInfo)> {
         self.check()?;
         check_training_data(x, y)?;
-        let data = Data::new(x, y)?;
-        let trees: Vec<Tree> = (0..self.n_trees)
+        let data = Data::new(x, y, out.is_some())?;
+        let built: Vec<(Tree, Vec<u32>)> = (0..self.n_trees)
             .into_par_iter()
             // One workspace per rayon split (a few per fit), not per tree: each costs page faults.
             .map_init(
                 || Workspace::new(data.d, data.n),
-                |ws, t| build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64])),
+                |ws, t| {
+                    let mut leaf_of = if data.idx.is_empty() { Vec::new() } else { vec![0u32; data.n] };
+                    let tree = build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut leaf_of);
+                    (tree, leaf_of)
+                },
             )
             .collect();
-        let model = ExtraTrees { n_inputs: data.d, trees };
+        if let Some(out) = out {
+            let m = built.len() as f64;
+            out.par_chunks_mut(PREDICT_BLOCK).enumerate().for_each(|(b, block)| {
+                let start = b * PREDICT_BLOCK;
+                block.fill(0.0);
+                for (tree, leaf_of) in &built {
+                    for (o, &leaf) in block.iter_mut().zip(&leaf_of[start..]) {
+                        *o += tree.nodes[leaf as usize].val;
+                    }
+                }
+                for o in block.iter_mut() {
+                    *o /= m;
+                }
+            });
+        }
+        let model = ExtraTrees { n_inputs: data.d, trees: built.into_iter().map(|(t, _)| t).collect() };
         Ok((model, FitInfo { epochs: 0, stop: StopReason::NotIterative }))
     }
 }
@@ -477,10 +510,13 @@ struct Data {
     d: usize,
     x: Vec<f32>,
     y: Vec<f64>,
+    /// `0..n` when the trees record each row's leaf (the row indices are partitioned with the
+    /// columns), else empty.
+    idx: Vec<u32>,
 }
 
 impl Data {
-    fn new(rows: Rows<'_>, y: &[f64]) -> Result<Self> {
+    fn new(rows: Rows<'_>, y: &[f64], track_rows: bool) -> Result<Self> {
         let (n, d) = (rows.n_rows(), rows.n_cols());
         // Node indices are u32 and a tree has at most 2n − 1 nodes; feature indices leave the
         // top bit to LEAF.
@@ -499,7 +535,8 @@ impl Data {
                 x[f * n + i] = v as f32;
             }
         }
-        Ok(Data { n, d, x, y: y.to_vec() })
+        let idx = if track_rows { (0..n as u32).collect() } else { Vec::new() };
+        Ok(Data { n, d, x, y: y.to_vec(), idx })
     }
 }
 
@@ -511,6 +548,9 @@ struct Workspace {
     bx: Vec<f32>,
     ay: Vec<f64>,
     by: Vec<f64>,
+    /// Row indices, partitioned like the columns (only when [`Data::idx`] is set).
+    ai: Vec<u32>,
+    bi: Vec<u32>,
     /// Where the portable partition sends each row of the node, relative to its start.
     pos: Vec<u32>,
     /// Which rows go left, 16 per mask (AVX-512 partition).
@@ -529,6 +569,9 @@ impl Workspace {
             bx: vec![0.0; d * n],
             ay: vec![0.0; n],
             by: vec![0.0; n],
+            // Zeroed lazily by the allocator: untouched pages cost nothing when rows are not tracked.
+            ai: vec![0; n],
+            bi: vec![0; n],
             pos: vec![0; n],
             masks: vec![0; n.div_ceil(16)],
             order: (0..d).collect(),
@@ -581,39 +624,48 @@ struct Split {
 
 /// Builds one tree, with AVX-512 kernels when the CPU has them. Both paths build the same tree: the
 /// kernels add in the same order (explicit lanes), and partitions and extrema are exact.
-fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
+///
+/// When `data.idx` is set, `leaf_of[i]` gets the node index of the leaf training row `i` lands in.
+fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
     #[cfg(target_arch = "x86_64")]
     {
         if avx512::available() {
             // SAFETY: the features were just detected.
-            return unsafe { build_tree_avx512(p, data, ws, rng) };
+            return unsafe { build_tree_avx512(p, data, ws, rng, leaf_of) };
         }
         if is_x86_feature_detected!("avx2") {
             // SAFETY: the feature was just detected.
-            return unsafe { build_tree_avx2(p, data, ws, rng) };
+            return unsafe { build_tree_avx2(p, data, ws, rng, leaf_of) };
         }
     }
-    build_tree_impl::<false>(p, data, ws, rng)
+    build_tree_impl::<false>(p, data, ws, rng, leaf_of)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,popcnt")]
-fn build_tree_avx512(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
-    build_tree_impl::<true>(p, data, ws, rng)
+fn build_tree_avx512(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
+    build_tree_impl::<true>(p, data, ws, rng, leaf_of)
 }
 
 /// The portable kernels, compiled for AVX2 (the compiler vectorises the extrema).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng) -> Tree {
-    build_tree_impl::<false>(p, data, ws, rng)
+fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
+    build_tree_impl::<false>(p, data, ws, rng, leaf_of)
 }
 
 /// The builder (sklearn's depth-first builder with its random splitter). `WIDE` selects the AVX-512
 /// kernels; it is only true inside [`build_tree_avx512`].
 #[inline(always)]
-fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, mut rng: Rng) -> Tree {
+fn build_tree_impl<const WIDE: bool>(
+    p: &ExtraTreesParams,
+    data: &Data,
+    ws: &mut Workspace,
+    mut rng: Rng,
+    leaf_of: &mut [u32],
+) -> Tree {
     let (n_all, d) = (data.n, data.d);
+    let track = !data.idx.is_empty();
     let max_depth = p.max_depth.unwrap_or(usize::MAX);
     let (min_split, min_leaf) = (p.min_samples_split, p.min_samples_leaf);
     let mut nodes = vec![Node::leaf(0, 0.0)];
@@ -627,12 +679,12 @@ fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut
     while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
         let n = end - start;
         counts[slot] = n as u32;
-        let (src_x, src_y, dst_x, dst_y) = if depth == 0 {
-            (&data.x[..], &data.y[..], &mut ws.bx[..], &mut ws.by[..])
+        let (src_x, src_y, src_i, dst_x, dst_y, dst_i) = if depth == 0 {
+            (&data.x[..], &data.y[..], &data.idx[..], &mut ws.bx[..], &mut ws.by[..], &mut ws.bi[..])
         } else if depth % 2 == 1 {
-            (&ws.bx[..], &ws.by[..], &mut ws.ax[..], &mut ws.ay[..])
+            (&ws.bx[..], &ws.by[..], &ws.bi[..], &mut ws.ax[..], &mut ws.ay[..], &mut ws.ai[..])
         } else {
-            (&ws.ax[..], &ws.ay[..], &mut ws.bx[..], &mut ws.by[..])
+            (&ws.ax[..], &ws.ay[..], &ws.ai[..], &mut ws.bx[..], &mut ws.by[..], &mut ws.bi[..])
         };
         let ys = &src_y[start..end];
         let (mean, var) = mean_var::<WIDE>(ys);
@@ -682,6 +734,11 @@ fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut
 
         let Some(split) = best else {
             nodes[slot] = Node::leaf(slot, mean);
+            if track {
+                for &i in &src_i[start..end] {
+                    leaf_of[i as usize] = slot as u32;
+                }
+            }
             tree_depth = tree_depth.max(depth);
             continue;
         };
@@ -699,6 +756,9 @@ fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut
                     avx512::partition(&src_x[range.clone()], &mut dst_x[range], masks, split.n_left);
                 }
                 avx512::partition(ys, &mut dst_y[start..end], masks, split.n_left);
+                if track {
+                    avx512::partition(&src_i[start..end], &mut dst_i[start..end], masks, split.n_left);
+                }
             }
         }
         if !WIDE || cfg!(not(target_arch = "x86_64")) {
@@ -708,6 +768,9 @@ fn build_tree_impl<const WIDE: bool>(p: &ExtraTreesParams, data: &Data, ws: &mut
                 portable::scatter(&src_x[range.clone()], &mut dst_x[range], pos);
             }
             portable::scatter(ys, &mut dst_y[start..end], pos);
+            if track {
+                portable::scatter(&src_i[start..end], &mut dst_i[start..end], pos);
+            }
         }
 
         let left = nodes.len();
@@ -1043,6 +1106,22 @@ mod avx512 {
         }
     }
 
+    impl Lane for u32 {
+        #[inline]
+        #[target_feature(enable = "avx512f")]
+        unsafe fn compress16(src: *const u32, valid: u16, k: u16, dst: *mut u32, exact: bool) {
+            // SAFETY: per the trait contract.
+            unsafe {
+                let v = _mm512_maskz_loadu_epi32(valid, src.cast());
+                if exact {
+                    _mm512_mask_compressstoreu_epi32(dst.cast(), k, v);
+                } else {
+                    _mm512_storeu_si512(dst.cast(), _mm512_maskz_compress_epi32(k, v));
+                }
+            }
+        }
+    }
+
     impl Lane for f64 {
         #[inline]
         #[target_feature(enable = "avx512f,popcnt")]
@@ -1259,18 +1338,41 @@ mod tests {
                 let mut x = random_x(n, 3, n as u64);
                 x.iter_mut().skip(2).step_by(3).for_each(|v| *v = (*v * 4.0).round());
                 let y: Vec<f64> = x.chunks(3).map(|r| offset + target(r) + r[2]).collect();
-                let data = Data::new(Rows::new(&x, 3).unwrap(), &y).unwrap();
+                let data = Data::new(Rows::new(&x, 3).unwrap(), &y, true).unwrap();
                 for p in [params(1, None, 2, 1), params(1, Some(5), 4, 2)] {
                     let mut ws = Workspace::new(3, n);
-                    let a = build_tree_impl::<false>(&p, &data, &mut ws, rng::stream(9, "tree", &[0]));
+                    let (mut la, mut lb) = (vec![0; n], vec![0; n]);
+                    let a = build_tree_impl::<false>(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut la);
                     // SAFETY: the features were just detected.
-                    let b = unsafe { build_tree_avx512(&p, &data, &mut ws, rng::stream(9, "tree", &[0])) };
+                    let b = unsafe { build_tree_avx512(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut lb) };
                     assert_eq!(a.counts, b.counts, "n {n}");
+                    assert_eq!(la, lb, "n {n}");
                     for (u, v) in a.nodes.iter().zip(&b.nodes) {
                         assert_eq!((u.val.to_bits(), u.feat, u.left), (v.val.to_bits(), v.feat, v.left), "n {n}");
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn fit_predict_matches_predict_into() {
+        // Ties at thresholds (rounded inputs), a depth limit (leaves above the deepest level), a
+        // large target offset, one and several trees, and rows in the parallel path.
+        for (n, trees, depth, leaf) in [(1, 1, None, 1), (37, 3, Some(3), 2), (9000, 20, Some(9), 1)] {
+            let mut x = random_x(n, 3, n as u64 + 5);
+            x.iter_mut().skip(1).step_by(3).for_each(|v| *v = (*v * 8.0).round() / 8.0);
+            let y: Vec<f64> = x.chunks(3).map(|r| 1e5 + target(r) + r[1]).collect();
+            let p = params(trees, depth, 2, leaf);
+            let rows = Rows::new(&x, 3).unwrap();
+            let mut inside = vec![f64::NAN; n];
+            let (m, _) = p.fit_predict(rows, &y, 4, &mut inside).unwrap();
+            let mut walked = vec![0.0; n];
+            m.predict_into(rows, &mut walked);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&inside), bits(&walked), "n {n}");
+            // Same model as a plain fit.
+            assert_eq!(bits(&predict(&fit(&p, &x, &y, 4), &x)), bits(&walked), "n {n}");
         }
     }
 

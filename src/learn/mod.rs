@@ -140,6 +140,16 @@ pub trait Learner: Send + Sync {
     /// Fits a model on `x` → `y`. Every random draw derives from `seed` (SPEC §7), so the model is
     /// a pure function of (hyperparameters, data, seed), whatever the thread count.
     fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Self::Model, FitInfo)>;
+
+    /// [`Learner::fit`], also leaving the model's predictions on the training rows in `out`,
+    /// bit-identical to `predict_into(x, out)`. FQI needs them every iteration (the Bellman residual,
+    /// B-FQI's running sums); a learner that knows where each training row ends up (a tree's leaves)
+    /// overrides this to skip the walk.
+    fn fit_predict(&self, x: Rows<'_>, y: &[f64], seed: u64, out: &mut [f64]) -> Result<(Self::Model, FitInfo)> {
+        let (m, info) = self.fit(x, y, seed)?;
+        m.predict_into(x, out);
+        Ok((m, info))
+    }
 }
 
 #[cfg(test)]
