@@ -821,6 +821,18 @@ fn count_sum_left<const WIDE: bool>(
     sums: &mut [LeftSums],
 ) {
     let n = ys.len();
+    #[cfg(target_arch = "x86_64")]
+    if WIDE && n <= SWEEP {
+        // One sweep step: each candidate's lanes live in registers and are reduced there, in the
+        // same order as below (most nodes are small, and for them the trip through memory and the
+        // scalar reduction cost more than the counting).
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start..c.feat * n_all + start + n];
+            // SAFETY: see build_tree_impl.
+            (s.count, s.sum) = unsafe { avx512::count_sum_node(xs, ys, c.thr) };
+        }
+        return;
+    }
     sums.fill(LeftSums::default());
     let mut a = 0;
     while a < n {
@@ -1023,10 +1035,17 @@ mod avx512 {
     pub fn min_max(xs: &[f32]) -> (f32, f32) {
         let n = xs.len();
         let (mut lo, mut hi) = (_mm512_set1_ps(f32::INFINITY), _mm512_set1_ps(f32::NEG_INFINITY));
-        for i in (0..n).step_by(16) {
-            let m = valid(n - i);
-            // SAFETY: the mask covers only rows i..n; masked-out lanes are not read.
-            let x = unsafe { _mm512_maskz_loadu_ps(m, xs.as_ptr().add(i)) };
+        let full = n / 16 * 16;
+        for i in (0..full).step_by(16) {
+            // SAFETY: rows i..i + 16 exist.
+            let x = unsafe { _mm512_loadu_ps(xs.as_ptr().add(i)) };
+            lo = _mm512_min_ps(lo, x);
+            hi = _mm512_max_ps(hi, x);
+        }
+        if full < n {
+            let m = valid(n - full);
+            // SAFETY: the mask covers only rows full..n; masked-out lanes are not read.
+            let x = unsafe { _mm512_maskz_loadu_ps(m, xs.as_ptr().add(full)) };
             lo = _mm512_mask_min_ps(lo, m, lo, x);
             hi = _mm512_mask_max_ps(hi, m, hi, x);
         }
@@ -1063,6 +1082,58 @@ mod avx512 {
         s.count += count;
     }
 
+    /// The rows with `x <= t` and the sum of their targets, for a whole node: the lanes of
+    /// [`portable::count_sum_blocks`] from zero, reduced as [`super::count_sum_left`] reduces them
+    /// (lane-wise `(l[j] + l[j+8]) + (l[j+16] + l[j+24])`, then [`super::hsum8`]'s halving order).
+    #[inline]
+    #[target_feature(enable = "avx512f,avx512dq,popcnt")]
+    pub fn count_sum_node(xs: &[f32], ys: &[f64], t: f32) -> (usize, f64) {
+        let n = xs.len();
+        assert_eq!(ys.len(), n);
+        let tv = _mm512_set1_ps(t);
+        // Block b of 16 rows adds into (a0, a1) if b is even, (a2, a3) if odd: lanes 0–31.
+        let (mut a0, mut a1, mut a2, mut a3) =
+            (_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd());
+        let mut count = 0usize;
+        // The targets of the rows with x <= t in a block at row i (zeros elsewhere), and their count.
+        let block = |i: usize, m: u16| {
+            // SAFETY: the mask covers only rows that exist; masked-out lanes are not read.
+            unsafe {
+                let (px, py) = (xs.as_ptr().add(i), ys.as_ptr().add(i));
+                let k = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, _mm512_maskz_loadu_ps(m, px), tv);
+                let y0 = _mm512_maskz_loadu_pd(k as u8, py);
+                (k.count_ones() as usize, y0, _mm512_maskz_loadu_pd((k >> 8) as u8, py.wrapping_add(8)))
+            }
+        };
+        let pairs = n / 32 * 32;
+        for i in (0..pairs).step_by(32) {
+            let (c0, y0, y1) = block(i, u16::MAX);
+            let (c1, y2, y3) = block(i + 16, u16::MAX);
+            count += c0 + c1;
+            a0 = _mm512_add_pd(a0, y0);
+            a1 = _mm512_add_pd(a1, y1);
+            a2 = _mm512_add_pd(a2, y2);
+            a3 = _mm512_add_pd(a3, y3);
+        }
+        if pairs < n {
+            let (c0, y0, y1) = block(pairs, valid(n - pairs));
+            count += c0;
+            a0 = _mm512_add_pd(a0, y0);
+            a1 = _mm512_add_pd(a1, y1);
+            if pairs + 16 < n {
+                let (c1, y2, y3) = block(pairs + 16, valid(n - pairs - 16));
+                count += c1;
+                a2 = _mm512_add_pd(a2, y2);
+                a3 = _mm512_add_pd(a3, y3);
+            }
+        }
+        let v = _mm512_add_pd(_mm512_add_pd(a0, a1), _mm512_add_pd(a2, a3));
+        // (v0+v4, v1+v5, v2+v6, v3+v7), then ((v0+v4)+(v2+v6), (v1+v5)+(v3+v7)), then their sum.
+        let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
+        let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
+        (count, _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u))))
+    }
+
     /// `masks[b]` bit i set iff row 16 b + i exists and `key[16 b + i] <= t`.
     #[inline]
     #[target_feature(enable = "avx512f")]
@@ -1078,46 +1149,46 @@ mod avx512 {
         }
     }
 
-    /// A value type the partition moves: f32 inputs, 16 per vector, or f64 targets, 8.
+    /// A value type the partition moves: f32 inputs or u32 row indices, 16 per vector, or f64
+    /// targets, 8.
     pub trait Lane: Copy {
         /// Stores the lanes of a block of 16 values at `src` selected by `k` contiguously at `dst`,
-        /// writing exactly `k.count_ones()` values if `exact`, else a full 16 (the surplus is
-        /// garbage). Only the lanes in `valid` (a superset of `k`) are read.
+        /// writing exactly `k.count_ones()` values (compress in a register, then a masked store:
+        /// a compressing store to memory is much slower on Intel cores). Only the lanes in `valid`
+        /// (a superset of `k`) are read.
         ///
         /// # Safety
-        /// AVX-512F is available, the `valid` lanes of `src` exist and `dst` has room for what is
-        /// written.
-        unsafe fn compress16(src: *const Self, valid: u16, k: u16, dst: *mut Self, exact: bool);
+        /// AVX-512F is available, the `valid` lanes of `src` exist and `dst` has room for
+        /// `k.count_ones()` values.
+        unsafe fn compress16(src: *const Self, valid: u16, k: u16, dst: *mut Self);
+    }
+
+    /// The first `c` lanes (c ≤ 16).
+    #[inline(always)]
+    fn first(c: u32) -> u16 {
+        ((1u32 << c) - 1) as u16
     }
 
     impl Lane for f32 {
         #[inline]
-        #[target_feature(enable = "avx512f")]
-        unsafe fn compress16(src: *const f32, valid: u16, k: u16, dst: *mut f32, exact: bool) {
+        #[target_feature(enable = "avx512f,popcnt")]
+        unsafe fn compress16(src: *const f32, valid: u16, k: u16, dst: *mut f32) {
             // SAFETY: per the trait contract.
             unsafe {
-                let v = _mm512_maskz_loadu_ps(valid, src);
-                if exact {
-                    _mm512_mask_compressstoreu_ps(dst, k, v);
-                } else {
-                    _mm512_storeu_ps(dst, _mm512_maskz_compress_ps(k, v));
-                }
+                let v = _mm512_maskz_compress_ps(k, _mm512_maskz_loadu_ps(valid, src));
+                _mm512_mask_storeu_ps(dst, first(k.count_ones()), v);
             }
         }
     }
 
     impl Lane for u32 {
         #[inline]
-        #[target_feature(enable = "avx512f")]
-        unsafe fn compress16(src: *const u32, valid: u16, k: u16, dst: *mut u32, exact: bool) {
+        #[target_feature(enable = "avx512f,popcnt")]
+        unsafe fn compress16(src: *const u32, valid: u16, k: u16, dst: *mut u32) {
             // SAFETY: per the trait contract.
             unsafe {
-                let v = _mm512_maskz_loadu_epi32(valid, src.cast());
-                if exact {
-                    _mm512_mask_compressstoreu_epi32(dst.cast(), k, v);
-                } else {
-                    _mm512_storeu_si512(dst.cast(), _mm512_maskz_compress_epi32(k, v));
-                }
+                let v = _mm512_maskz_compress_epi32(k, _mm512_maskz_loadu_epi32(valid, src.cast()));
+                _mm512_mask_storeu_epi32(dst.cast(), first(k.count_ones()), v);
             }
         }
     }
@@ -1125,27 +1196,21 @@ mod avx512 {
     impl Lane for f64 {
         #[inline]
         #[target_feature(enable = "avx512f,popcnt")]
-        unsafe fn compress16(src: *const f64, valid: u16, k: u16, dst: *mut f64, exact: bool) {
+        unsafe fn compress16(src: *const f64, valid: u16, k: u16, dst: *mut f64) {
             // SAFETY: per the trait contract; the first half writes (k as u8).count_ones() values.
             unsafe {
                 let (k0, k1) = (k as u8, (k >> 8) as u8);
-                let v0 = _mm512_maskz_loadu_pd(valid as u8, src);
-                let v1 = _mm512_maskz_loadu_pd((valid >> 8) as u8, src.wrapping_add(8));
-                let dst1 = dst.add(k0.count_ones() as usize);
-                if exact {
-                    _mm512_mask_compressstoreu_pd(dst, k0, v0);
-                    _mm512_mask_compressstoreu_pd(dst1, k1, v1);
-                } else {
-                    _mm512_storeu_pd(dst, _mm512_maskz_compress_pd(k0, v0));
-                    _mm512_storeu_pd(dst1, _mm512_maskz_compress_pd(k1, v1));
-                }
+                let v0 = _mm512_maskz_compress_pd(k0, _mm512_maskz_loadu_pd(valid as u8, src));
+                let v1 = _mm512_maskz_compress_pd(k1, _mm512_maskz_loadu_pd((valid >> 8) as u8, src.wrapping_add(8)));
+                let c0 = k0.count_ones();
+                _mm512_mask_storeu_pd(dst, first(c0) as u8, v0);
+                _mm512_mask_storeu_pd(dst.add(c0 as usize), first(k1.count_ones()) as u8, v1);
             }
         }
     }
 
     /// [`portable::positions`] + [`portable::scatter`]: stable partition of `src` into `dst` by
-    /// the `masks` of [`left_masks`] (`n_left` rows go left). Full-width stores are used while
-    /// their surplus lands on slots that a later store of the same side rewrites.
+    /// the `masks` of [`left_masks`] (`n_left` rows go left).
     #[inline]
     #[target_feature(enable = "avx512f,popcnt")]
     pub fn partition<T: Lane>(src: &[T], dst: &mut [T], masks: &[u16], n_left: usize) {
@@ -1158,12 +1223,12 @@ mod avx512 {
             // Needed for the stores below to stay inside `dst`; holds when n_left counts the
             // same comparison as the masks.
             assert!(k & !m == 0 && l + nk <= n_left && r + nr <= n);
-            // SAFETY: the `m` lanes of block b exist; a full store is taken only when 16 slots
-            // remain on its side, an exact one writes nk (nr) values, which fit (asserted).
+            // SAFETY: the `m` lanes of block b exist; the stores write nk (nr) values, which fit
+            // (asserted).
             unsafe {
                 let s = src.as_ptr().add(16 * b);
-                T::compress16(s, m, k, dst.as_mut_ptr().add(l), l + 16 > n_left);
-                T::compress16(s, m, m & !k, dst.as_mut_ptr().add(r), r + 16 > n);
+                T::compress16(s, m, k, dst.as_mut_ptr().add(l));
+                T::compress16(s, m, m & !k, dst.as_mut_ptr().add(r));
             }
             l += nk;
             r += nr;
