@@ -16,6 +16,7 @@ use crate::eval::{Score, evaluate};
 use crate::learn::actions::{Encoded, QModel, argmax};
 use crate::learn::{Learner, LearnerConfig, StopReason};
 use crate::rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
@@ -183,11 +184,31 @@ impl<'a, L: Learner> Fqi<'a, L> {
     }
 
     /// The greedy policy's score under the environment's evaluation protocol.
+    ///
+    /// An episode is sequential, but a B-FQI step sums many members: with several, their Q values
+    /// are computed in parallel into one buffer each and then added in member order, so the
+    /// policy is bit-identical to [`Fqi::q_values`] whatever the thread count.
     pub fn evaluate(&self) -> Score {
-        let mut row = vec![0.0; self.enc.actions.len()];
-        let mut q = vec![0.0; self.enc.actions.len()];
+        let na = self.enc.actions.len();
+        let k = self.members.len();
+        let mut q = vec![0.0; na];
+        let parallel = k >= PARALLEL_MEMBERS && rayon::current_num_threads() > 1;
+        let (mut per, mut scratch) = (vec![0.0; k.max(1) * na], vec![0.0; k.max(1) * na]);
         let mut policy = |obs: &[f64]| {
-            self.q_values(obs, &mut row, &mut q);
+            if parallel {
+                per.par_chunks_mut(na).zip(scratch.par_chunks_mut(na)).zip(self.members.par_iter()).for_each(
+                    |((p, s), m)| {
+                        p.fill(0.0);
+                        m.add_q_values(obs, &self.enc.actions, s, p);
+                    },
+                );
+                q.fill(0.0);
+                for p in per.chunks_exact(na) {
+                    add(&mut q, p);
+                }
+            } else {
+                self.q_values(obs, &mut scratch, &mut q);
+            }
             argmax(&q)
         };
         evaluate(self.env, &mut policy, self.eval_seed)
@@ -292,6 +313,10 @@ impl<'a, L: Learner> Fqi<'a, L> {
         Ok(rec)
     }
 }
+
+/// Members from which the greedy policy's steps sum them in parallel (below, the split costs more
+/// than it saves).
+const PARALLEL_MEMBERS: usize = 4;
 
 fn add(acc: &mut [f64], x: &[f64]) {
     for (a, b) in acc.iter_mut().zip(x) {
@@ -509,6 +534,11 @@ mod tests {
         // The greedy policy walks right: 4 steps of −0.1, then +1.
         assert!((fqi.evaluate().score - 0.6).abs() < 1e-12);
         assert_eq!(bfqi.members().len(), 10);
+        // Ten members: two threads sum them in parallel, one thread in turn; same policy, same score.
+        let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+        let (one, two) = (pool(1).install(|| bfqi.evaluate()), pool(2).install(|| bfqi.evaluate()));
+        assert_eq!((one.score.to_bits(), one.steps), (two.score.to_bits(), two.steps));
+        assert!((two.score - 0.6).abs() < 1e-12);
         assert_eq!(fqi.members().len(), 1);
     }
 
