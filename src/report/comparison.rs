@@ -133,16 +133,19 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
 
     let t = &cfg.tuned;
     let _ = writeln!(md, "# B-FQI vs FQI — {env}\n");
-    let _ = writeln!(
-        md,
-        "Master seed {}. Networks use the tuned config from `{}` ({}): activation {}, δ_min {}, patience {}.\n",
-        cfg.seed,
-        t.source,
-        if t.source == "thesis" { "the thesis's GA optimum" } else { "a search's best.json" },
-        serde_json::to_value(t.activation).unwrap_or_default().as_str().unwrap_or("?"),
-        t.delta_min,
-        t.patience
-    );
+    let _ = write!(md, "Master seed {}.", cfg.seed);
+    if cfg.learners.iter().any(|p| p.name == "mlp") {
+        let _ = write!(
+            md,
+            " Networks use the tuned config from `{}` ({}): activation {}, δ_min {}, patience {}.",
+            t.source,
+            if t.source == "thesis" { "the thesis's GA optimum" } else { "a search's best.json" },
+            serde_json::to_value(t.activation).unwrap_or_default().as_str().unwrap_or("?"),
+            t.delta_min,
+            t.patience
+        );
+    }
+    md.push_str("\n\n");
     let _ = writeln!(
         md,
         "Scores are means over datasets with 95 % intervals (1.96·std/√n, population std); diverged runs are left out of the means and counted.\n"
@@ -150,13 +153,19 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
     for plan in &cfg.learners {
         let _ = writeln!(
             md,
-            "- **{}**: `{}`, actions `{}`, K = {}, {} datasets × {} episodes",
+            "- **{}** base settings: `{}`, actions `{}`, K = {}, {} datasets × {} episodes",
             plan.name,
             serde_json::to_string(&plan.learner).unwrap_or_default(),
             serde_json::to_value(plan.actions).unwrap_or_default().as_str().unwrap_or("?"),
             plan.iterations,
             plan.datasets,
             plan.episodes
+        );
+    }
+    if cfg.analyses.iter().any(|a| *a != Analysis::Iterations) {
+        md.push_str(
+            "\nThe complexity analysis varies the maximum depth (Extra-Trees) or the width of a single hidden layer \
+             (networks); the dataset-size analysis names its own complexities and dataset count in its section.\n",
         );
     }
     md.push('\n');
