@@ -391,15 +391,16 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
                     }
                     md.push('\n');
                     let name = format!("{}-samples", plan.name);
-                    plot::lines(
+                    plot::lines_scaled(
                         &dir.join(&name),
                         &format!("{env}, {}: score at iteration {k} vs dataset size", plan.name),
-                        "episodes",
+                        "episodes (log scale)",
                         "score",
                         &[
                             series(&format!("FQI ({what} {})", s.fqi), 0, &pf),
                             series(&format!("B-FQI ({what} {})", s.bfqi), 1, &pb),
                         ],
+                        true,
                     )?;
                     let _ = writeln!(md, "![score vs dataset size]({name}.png)\n");
                     files.extend([format!("{name}.png"), format!("{name}.svg")]);

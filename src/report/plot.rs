@@ -104,18 +104,39 @@ fn draw_lines<DB: DrawingBackend>(
     x_label: &str,
     y_label: &str,
     series: &[Series],
+    log_x: bool,
 ) -> Result<()>
 where
     DB::ErrorType: 'static,
 {
-    let e = |err: &dyn std::fmt::Display| Error::Data(format!("plot '{title}': {err}"));
     let (x0, x1, y0, y1) = bounds(series);
+    if log_x && x0 > 0.0 {
+        draw_lines_on(area, title, x_label, y_label, series, (x0..x1).log_scale(), y0..y1)
+    } else {
+        draw_lines_on(area, title, x_label, y_label, series, x0..x1, y0..y1)
+    }
+}
+
+fn draw_lines_on<DB: DrawingBackend, X: plotters::coord::ranged1d::AsRangedCoord<Value = f64>>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    x: X,
+    y: std::ops::Range<f64>,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+    X::CoordDescType: plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    let e = |err: &dyn std::fmt::Display| Error::Data(format!("plot '{title}': {err}"));
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 22))
         .margin(14)
         .x_label_area_size(44)
         .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)
+        .build_cartesian_2d(x, y)
         .map_err(|x| e(&x))?;
     // Iterations, depths, units and sizes are whole numbers: label them so.
     let integer_x = series.iter().flat_map(|s| &s.points).all(|p| p.0.fract() == 0.0);
@@ -160,8 +181,21 @@ where
 
 /// A line chart with optional bands, as `<base>.png` and `<base>.svg`.
 pub fn lines(base: &Path, title: &str, x_label: &str, y_label: &str, series: &[Series]) -> Result<()> {
-    render(base, &|a| draw_lines(a, title, x_label, y_label, series), &|a| {
-        draw_lines(a, title, x_label, y_label, series)
+    lines_scaled(base, title, x_label, y_label, series, false)
+}
+
+/// [`lines`], with a logarithmic x axis if `log_x` (dataset sizes from 10 to 2000 episodes would
+/// otherwise crowd the small sizes, where the algorithms differ, into the first few pixels).
+pub fn lines_scaled(
+    base: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    log_x: bool,
+) -> Result<()> {
+    render(base, &|a| draw_lines(a, title, x_label, y_label, series, log_x), &|a| {
+        draw_lines(a, title, x_label, y_label, series, log_x)
     })
 }
 
