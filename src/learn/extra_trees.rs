@@ -560,6 +560,13 @@ struct Workspace {
     cands: Vec<Candidate>,
     sums: Vec<LeftSums>,
     stack: Vec<Pending>,
+    /// Each pending node's per-feature (min, max), `d` entries per node in stack order: a split
+    /// computes its children's while it partitions them, so no node reads its columns for them.
+    ranges: Vec<(f32, f32)>,
+    /// The current node's ranges, and its children's.
+    cur: Vec<(f32, f32)>,
+    left_ranges: Vec<(f32, f32)>,
+    right_ranges: Vec<(f32, f32)>,
 }
 
 impl Workspace {
@@ -578,6 +585,10 @@ impl Workspace {
             cands: Vec::with_capacity(d),
             sums: vec![LeftSums::default(); d],
             stack: Vec::new(),
+            ranges: Vec::new(),
+            cur: Vec::with_capacity(d),
+            left_ranges: vec![(0.0, 0.0); d],
+            right_ranges: vec![(0.0, 0.0); d],
         }
     }
 }
@@ -675,9 +686,15 @@ fn build_tree_impl<const WIDE: bool>(
     ws.order.extend(0..d);
     ws.stack.clear();
     ws.stack.push(Pending { slot: 0, start: 0, end: n_all, depth: 0 });
+    ws.ranges.clear();
+    ws.ranges.extend((0..d).map(|f| canonical(min_max::<WIDE>(&data.x[f * n_all..(f + 1) * n_all]))));
 
     while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
         let n = end - start;
+        let r0 = ws.ranges.len() - d;
+        ws.cur.clear();
+        ws.cur.extend_from_slice(&ws.ranges[r0..]);
+        ws.ranges.truncate(r0);
         counts[slot] = n as u32;
         let (src_x, src_y, src_i, dst_x, dst_y, dst_i) = if depth == 0 {
             (&data.x[..], &data.y[..], &data.idx[..], &mut ws.bx[..], &mut ws.by[..], &mut ws.bi[..])
@@ -700,8 +717,7 @@ fn build_tree_impl<const WIDE: bool>(
             // count all candidates in one sweep, so the node's targets are read once, not d times.
             ws.cands.clear();
             for &f in &ws.order {
-                let xs = &src_x[f * n_all + start..f * n_all + end];
-                let (lo, hi) = min_max::<WIDE>(xs);
+                let (lo, hi) = ws.cur[f];
                 let (lo, hi) = (lo as f64, hi as f64);
                 if hi <= lo + FEATURE_THRESHOLD {
                     continue;
@@ -752,8 +768,10 @@ fn build_tree_impl<const WIDE: bool>(
             // SAFETY: WIDE is only set in build_tree_avx512, called after detecting the features.
             unsafe {
                 avx512::left_masks(key, split.thr, masks);
-                for range in columns.clone() {
-                    avx512::partition(&src_x[range.clone()], &mut dst_x[range], masks, split.n_left);
+                for (f, range) in columns.clone().enumerate() {
+                    let (l, r) =
+                        avx512::partition_min_max(&src_x[range.clone()], &mut dst_x[range], masks, split.n_left);
+                    (ws.left_ranges[f], ws.right_ranges[f]) = (canonical(l), canonical(r));
                 }
                 avx512::partition(ys, &mut dst_y[start..end], masks, split.n_left);
                 if track {
@@ -764,8 +782,11 @@ fn build_tree_impl<const WIDE: bool>(
         if !WIDE || cfg!(not(target_arch = "x86_64")) {
             let pos = &mut ws.pos[..n];
             portable::positions(key, split.thr, split.n_left, pos);
-            for range in columns {
-                portable::scatter(&src_x[range.clone()], &mut dst_x[range], pos);
+            for (f, range) in columns.enumerate() {
+                portable::scatter(&src_x[range.clone()], &mut dst_x[range.clone()], pos);
+                let (l, r) = dst_x[range].split_at(split.n_left);
+                (ws.left_ranges[f], ws.right_ranges[f]) =
+                    (canonical(portable::min_max(l)), canonical(portable::min_max(r)));
             }
             portable::scatter(ys, &mut dst_y[start..end], pos);
             if track {
@@ -780,9 +801,18 @@ fn build_tree_impl<const WIDE: bool>(
         let mid = start + split.n_left;
         // Right pushed first so the left subtree is grown first (depth-first, as sklearn).
         ws.stack.push(Pending { slot: left + 1, start: mid, end, depth: depth + 1 });
+        ws.ranges.extend_from_slice(&ws.right_ranges);
         ws.stack.push(Pending { slot: left, start, end: mid, depth: depth + 1 });
+        ws.ranges.extend_from_slice(&ws.left_ranges);
     }
     Tree { nodes, counts, depth: tree_depth }
+}
+
+/// A range with +0.0 for −0.0, so that it does not depend on the order the extrema were taken in
+/// (min/max of ±0 return either).
+#[inline(always)]
+fn canonical((lo, hi): (f32, f32)) -> (f32, f32) {
+    (lo + 0.0, hi + 0.0)
 }
 
 #[inline(always)]
@@ -1132,6 +1162,42 @@ mod avx512 {
         let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
         let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
         (count, _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u))))
+    }
+
+    /// [`partition`] of an input column, also returning the (min, max) of the rows sent left and
+    /// of those sent right (both sides non-empty), taken from the vectors already loaded.
+    #[inline]
+    #[target_feature(enable = "avx512f,popcnt")]
+    pub fn partition_min_max(src: &[f32], dst: &mut [f32], masks: &[u16], n_left: usize) -> ((f32, f32), (f32, f32)) {
+        let n = src.len();
+        assert!(dst.len() == n && masks.len() == n.div_ceil(16) && 0 < n_left && n_left < n);
+        let (inf, ninf) = (_mm512_set1_ps(f32::INFINITY), _mm512_set1_ps(f32::NEG_INFINITY));
+        let (mut lo_l, mut hi_l, mut lo_r, mut hi_r) = (inf, ninf, inf, ninf);
+        let (mut l, mut r) = (0, n_left);
+        for (b, &k) in masks.iter().enumerate() {
+            let m = valid(n - 16 * b);
+            let kr = m & !k;
+            let (nk, nr) = (k.count_ones() as usize, kr.count_ones() as usize);
+            assert!(k & !m == 0 && l + nk <= n_left && r + nr <= n);
+            // SAFETY: the `m` lanes of block b exist; each store writes nk (nr) values, which fit
+            // (asserted).
+            unsafe {
+                let v = _mm512_maskz_loadu_ps(m, src.as_ptr().add(16 * b));
+                _mm512_mask_storeu_ps(dst.as_mut_ptr().add(l), first(nk as u32), _mm512_maskz_compress_ps(k, v));
+                _mm512_mask_storeu_ps(dst.as_mut_ptr().add(r), first(nr as u32), _mm512_maskz_compress_ps(kr, v));
+                lo_l = _mm512_mask_min_ps(lo_l, k, lo_l, v);
+                hi_l = _mm512_mask_max_ps(hi_l, k, hi_l, v);
+                lo_r = _mm512_mask_min_ps(lo_r, kr, lo_r, v);
+                hi_r = _mm512_mask_max_ps(hi_r, kr, hi_r, v);
+            }
+            l += nk;
+            r += nr;
+        }
+        assert!(l == n_left && r == n, "the partition counts disagree with the split");
+        (
+            (_mm512_reduce_min_ps(lo_l), _mm512_reduce_max_ps(hi_l)),
+            (_mm512_reduce_min_ps(lo_r), _mm512_reduce_max_ps(hi_r)),
+        )
     }
 
     /// `masks[b]` bit i set iff row 16 b + i exists and `key[16 b + i] <= t`.
