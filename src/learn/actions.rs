@@ -106,6 +106,14 @@ impl Encoded {
         Ok(e)
     }
 
+    /// `out[i] = vals[k]` for the k-th training row of action j (`per_action` layout).
+    fn put_action_rows(&self, j: usize, vals: &[f64], out: &mut [f64]) {
+        let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
+        for (&i, &v) in self.train_index[lo..hi].iter().zip(vals) {
+            out[i] = v;
+        }
+    }
+
     /// Number of input features of each model.
     pub fn n_inputs(&self) -> usize {
         match self.encoding {
@@ -142,9 +150,7 @@ impl Encoded {
                     let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
                     let seed_j = rng::derive(seed, "action", &[j as u64]);
                     let (m, fi) = learner.fit_predict(Rows::new(x, self.obs_dim)?, &ys, seed_j, &mut buf)?;
-                    for (k, &i) in self.train_index[lo..hi].iter().enumerate() {
-                        out[i] = buf[k];
-                    }
+                    self.put_action_rows(j, &buf, out);
                     info.epochs += fi.epochs;
                     // Any non-finite fit makes the member diverged; otherwise report the last reason.
                     if info.stop != StopReason::NonFinite {
@@ -168,9 +174,7 @@ impl Encoded {
                     buf.resize(hi - lo, 0.0);
                     let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
                     m.predict_into(Rows::new(x, self.obs_dim).expect("laid out"), &mut buf);
-                    for (k, &i) in self.train_index[lo..hi].iter().enumerate() {
-                        out[i] = buf[k];
-                    }
+                    self.put_action_rows(j, &buf, out);
                 }
             }
         }

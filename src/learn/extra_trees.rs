@@ -1215,8 +1215,8 @@ mod avx512 {
         }
     }
 
-    /// A value type the partition moves: f32 inputs or u32 row indices, 16 per vector, or f64
-    /// targets, 8.
+    /// A value type [`partition`] moves: u32 row indices, 16 per vector, or f64 targets, 8 (the
+    /// f32 inputs go through [`partition_min_max`], which also takes each side's range).
     pub trait Lane: Copy {
         /// Stores the lanes of a block of 16 values at `src` selected by `k` contiguously at `dst`,
         /// writing exactly `k.count_ones()` values (compress in a register, then a masked store:
@@ -1233,18 +1233,6 @@ mod avx512 {
     #[inline(always)]
     fn first(c: u32) -> u16 {
         ((1u32 << c) - 1) as u16
-    }
-
-    impl Lane for f32 {
-        #[inline]
-        #[target_feature(enable = "avx512f,popcnt")]
-        unsafe fn compress16(src: *const f32, valid: u16, k: u16, dst: *mut f32) {
-            // SAFETY: per the trait contract.
-            unsafe {
-                let v = _mm512_maskz_compress_ps(k, _mm512_maskz_loadu_ps(valid, src));
-                _mm512_mask_storeu_ps(dst, first(k.count_ones()), v);
-            }
-        }
     }
 
     impl Lane for u32 {
