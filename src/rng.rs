@@ -63,11 +63,19 @@ pub fn uniform(rng: &mut Rng, lo: f64, hi: f64) -> f64 {
 /// A uniform integer in `0..n` (n > 0), by Lemire's multiply-shift with rejection (unbiased).
 #[inline]
 pub fn below(rng: &mut Rng, n: u64) -> u64 {
+    bounded(|| rng.next_u64(), n)
+}
+
+/// [`below`] on any source of the generator's words. The rejection threshold `2⁶⁴ mod n` is below
+/// `n`, so its 64-bit division is only needed when the low product word is below `n` (almost
+/// never): the same values and the same words consumed as testing every draw against it.
+#[inline]
+pub(crate) fn bounded(mut next: impl FnMut() -> u64, n: u64) -> u64 {
     debug_assert!(n > 0);
-    let threshold = n.wrapping_neg() % n;
     loop {
-        let m = (rng.next_u64() as u128) * (n as u128);
-        if (m as u64) >= threshold {
+        let m = (next() as u128) * (n as u128);
+        let low = m as u64;
+        if low >= n || low >= n.wrapping_neg() % n {
             return (m >> 64) as u64;
         }
     }
@@ -92,6 +100,29 @@ mod tests {
         assert_ne!(derive(1, "dataset", &[0, 1]), derive(1, "dataset", &[1, 0]));
         assert_ne!(derive(1, "ab", &[]), derive(1, "a", &[u64::from_le_bytes(*b"b\0\0\0\0\0\0\0")]));
         assert_eq!(derive(42, "eval", &[3]), 10090956817012991045);
+    }
+
+    /// Lemire's method as published: the threshold computed and tested on every draw.
+    fn below_textbook(rng: &mut Rng, n: u64) -> u64 {
+        let threshold = n.wrapping_neg() % n;
+        loop {
+            let m = (rng.next_u64() as u128) * (n as u128);
+            if (m as u64) >= threshold {
+                return (m >> 64) as u64;
+            }
+        }
+    }
+
+    #[test]
+    fn below_matches_the_textbook_rejection() {
+        // Large n reject often (2⁶⁴ mod n is near n for n just above 2⁶³), so both branches run.
+        for n in [1, 2, 3, 9, 1000, (1 << 63) + 1, u64::MAX / 3 * 2, u64::MAX] {
+            let (mut a, mut b) = (stream(3, "below", &[n]), stream(3, "below", &[n]));
+            for _ in 0..2000 {
+                assert_eq!(below(&mut a, n), below_textbook(&mut b, n), "n = {n}");
+            }
+            assert_eq!(a.next_u64(), b.next_u64(), "same words consumed, n = {n}");
+        }
     }
 
     #[test]

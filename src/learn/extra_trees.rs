@@ -750,18 +750,21 @@ fn build_tree_impl<const WIDE: bool>(
 
         let Some(split) = best else {
             nodes[slot] = Node::leaf(slot, mean);
-            if track {
-                for &i in &src_i[start..end] {
-                    leaf_of[i as usize] = slot as u32;
-                }
-            }
+            record_leaf(slot, if track { &src_i[start..end] } else { &[] }, leaf_of);
             tree_depth = tree_depth.max(depth);
             continue;
         };
 
+        // A child that the size or depth rules make a leaf is finished here rather than pushed; if
+        // both children are, their input columns are not needed and are not moved.
+        let (n_left, n_right) = (split.n_left, n - split.n_left);
+        let forced_leaf = |m: usize| m < min_split || m < 2 * min_leaf || depth + 1 >= max_depth;
+        let (leaf_left, leaf_right) = (forced_leaf(n_left), forced_leaf(n_right));
+        let move_x = !(leaf_left && leaf_right);
+
         // Stable partition of every column (and y) into the other buffer.
         let key = &src_x[split.feat * n_all + start..split.feat * n_all + end];
-        let columns = (0..d).map(|f| f * n_all + start..f * n_all + end);
+        let columns = (0..if move_x { d } else { 0 }).map(|f| f * n_all + start..f * n_all + end);
         #[cfg(target_arch = "x86_64")]
         if WIDE {
             let masks = &mut ws.masks[..n.div_ceil(16)];
@@ -797,15 +800,32 @@ fn build_tree_impl<const WIDE: bool>(
         let left = nodes.len();
         nodes[slot] = Node { val: query_threshold(split.thr), feat: split.feat as u32, left: left as u32 };
         nodes.extend([Node::leaf(left, 0.0), Node::leaf(left + 1, 0.0)]);
-        counts.extend([0; 2]);
-        let mid = start + split.n_left;
-        // Right pushed first so the left subtree is grown first (depth-first, as sklearn).
-        ws.stack.push(Pending { slot: left + 1, start: mid, end, depth: depth + 1 });
-        ws.ranges.extend_from_slice(&ws.right_ranges);
-        ws.stack.push(Pending { slot: left, start, end: mid, depth: depth + 1 });
-        ws.ranges.extend_from_slice(&ws.left_ranges);
+        counts.extend([n_left as u32, n_right as u32]);
+        let mid = start + n_left;
+        // Right pushed first so the left subtree is grown first (depth-first, as sklearn). Leaves
+        // draw nothing from `rng`, so finishing them out of turn changes no later draw.
+        for (child, leaf, rows, ranges) in
+            [(left + 1, leaf_right, mid..end, &ws.right_ranges), (left, leaf_left, start..mid, &ws.left_ranges)]
+        {
+            if leaf {
+                nodes[child] = Node::leaf(child, mean_var::<WIDE>(&dst_y[rows.clone()]).0);
+                record_leaf(child, if track { &dst_i[rows] } else { &[] }, leaf_of);
+                tree_depth = tree_depth.max(depth + 1);
+            } else {
+                ws.stack.push(Pending { slot: child, start: rows.start, end: rows.end, depth: depth + 1 });
+                ws.ranges.extend_from_slice(ranges);
+            }
+        }
     }
     Tree { nodes, counts, depth: tree_depth }
+}
+
+/// `leaf_of[i] = slot` for the training rows `rows` of a leaf (nothing when rows are not tracked).
+#[inline(always)]
+fn record_leaf(slot: usize, rows: &[u32], leaf_of: &mut [u32]) {
+    for &i in rows {
+        leaf_of[i as usize] = slot as u32;
+    }
 }
 
 /// A range with +0.0 for −0.0, so that it does not depend on the order the extrema were taken in
@@ -1084,28 +1104,11 @@ mod avx512 {
 
     /// [`portable::count_sum_blocks`].
     #[inline]
-    #[target_feature(enable = "avx512f,popcnt")]
+    #[target_feature(enable = "avx512f,avx512dq,popcnt")]
     pub fn count_sum_blocks(xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums) {
-        let n = xs.len();
-        assert_eq!(ys.len(), n);
-        let tv = _mm512_set1_ps(t);
         // SAFETY: `lanes` holds 32 f64.
-        let mut acc: [__m512d; 4] = std::array::from_fn(|i| unsafe { _mm512_loadu_pd(s.lanes.as_ptr().add(8 * i)) });
-        let mut count = 0usize;
-        for i in (0..n).step_by(16) {
-            let m = valid(n - i);
-            let h = (i / 16) % 2;
-            // SAFETY: the mask covers only rows i..n; masked-out lanes are not read.
-            let (k, y0, y1) = unsafe {
-                let (px, py) = (xs.as_ptr().add(i), ys.as_ptr().add(i));
-                let k = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(m, _mm512_maskz_loadu_ps(m, px), tv);
-                (k, _mm512_maskz_loadu_pd(k as u8, py), _mm512_maskz_loadu_pd((k >> 8) as u8, py.wrapping_add(8)))
-            };
-            count += k.count_ones() as usize;
-            // Zeros where x > t or past the end: +0.0, exactly as the portable `else { 0.0 }`.
-            acc[2 * h] = _mm512_add_pd(acc[2 * h], y0);
-            acc[2 * h + 1] = _mm512_add_pd(acc[2 * h + 1], y1);
-        }
+        let acc: [__m512d; 4] = std::array::from_fn(|i| unsafe { _mm512_loadu_pd(s.lanes.as_ptr().add(8 * i)) });
+        let (acc, count) = accumulate(xs, ys, t, acc);
         for (i, a) in acc.iter().enumerate() {
             store(*a, &mut s.lanes[8 * i..]);
         }
@@ -1118,14 +1121,28 @@ mod avx512 {
     #[inline]
     #[target_feature(enable = "avx512f,avx512dq,popcnt")]
     pub fn count_sum_node(xs: &[f32], ys: &[f64], t: f32) -> (usize, f64) {
+        let (a, count) = accumulate(xs, ys, t, [_mm512_setzero_pd(); 4]);
+        let v = _mm512_add_pd(_mm512_add_pd(a[0], a[1]), _mm512_add_pd(a[2], a[3]));
+        // (v0+v4, v1+v5, v2+v6, v3+v7), then ((v0+v4)+(v2+v6), (v1+v5)+(v3+v7)), then their sum.
+        let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
+        let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
+        (count, _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u))))
+    }
+
+    /// Adds the targets of the rows with `x <= t` to the 32 lanes `acc` (lane k: rows ≡ k mod 32,
+    /// `xs` starting at a multiple of 32 rows into the node) and counts those rows. Pairs of
+    /// 16-row blocks are unrolled so the four accumulators stay in registers (indexing them by a
+    /// block's parity would put them in memory, and every block would wait for a store to forward).
+    #[inline]
+    #[target_feature(enable = "avx512f,popcnt")]
+    fn accumulate(xs: &[f32], ys: &[f64], t: f32, acc: [__m512d; 4]) -> ([__m512d; 4], usize) {
         let n = xs.len();
         assert_eq!(ys.len(), n);
         let tv = _mm512_set1_ps(t);
-        // Block b of 16 rows adds into (a0, a1) if b is even, (a2, a3) if odd: lanes 0–31.
-        let (mut a0, mut a1, mut a2, mut a3) =
-            (_mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd(), _mm512_setzero_pd());
+        let [mut a0, mut a1, mut a2, mut a3] = acc;
         let mut count = 0usize;
-        // The targets of the rows with x <= t in a block at row i (zeros elsewhere), and their count.
+        // The targets of the rows with x <= t in a block at row i (zeros elsewhere: +0.0, exactly
+        // as the portable `else { 0.0 }`), and their count.
         let block = |i: usize, m: u16| {
             // SAFETY: the mask covers only rows that exist; masked-out lanes are not read.
             unsafe {
@@ -1157,11 +1174,7 @@ mod avx512 {
                 a3 = _mm512_add_pd(a3, y3);
             }
         }
-        let v = _mm512_add_pd(_mm512_add_pd(a0, a1), _mm512_add_pd(a2, a3));
-        // (v0+v4, v1+v5, v2+v6, v3+v7), then ((v0+v4)+(v2+v6), (v1+v5)+(v3+v7)), then their sum.
-        let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
-        let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
-        (count, _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u))))
+        ([a0, a1, a2, a3], count)
     }
 
     /// [`partition`] of an input column, also returning the (min, max) of the rows sent left and

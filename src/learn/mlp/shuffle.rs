@@ -23,18 +23,10 @@ impl U64s for Rng {
     }
 }
 
-/// Exactly [`crate::rng::below`] (same values, same draws consumed), without its 64-bit division
-/// per call: Lemire's rejection threshold `2⁶⁴ mod n` is below `n`, so it only needs computing
-/// when the low product word is below `n` (almost never).
+/// Exactly [`crate::rng::below`] (same values, same draws consumed) on any word source.
 #[inline]
 pub(crate) fn below_fast(rng: &mut impl U64s, n: u64) -> u64 {
-    loop {
-        let m = (rng.next() as u128) * (n as u128);
-        let low = m as u64;
-        if low >= n || low >= n.wrapping_neg() % n {
-            return (m >> 64) as u64;
-        }
-    }
+    crate::rng::bounded(|| rng.next(), n)
 }
 
 /// Blocks of 16 words generated at a time.
