@@ -350,10 +350,13 @@ struct Fork {
 ///
 /// [`LANES`] walks advance together, branch-free, [`ROUNDS`] steps at a time, each stopping at a
 /// leaf or an action split; between rounds, a walk at an action split goes on with the actions
-/// that go left (or right if none do) and a fork with the others is stacked. Once every walk is at
-/// a leaf, the leaves are reported and the lanes refilled, from the stack first. So a slot starts
-/// only when the stack is empty, at most [`LANES`] slots have walks left, and the walks of a slot
-/// carry disjoint non-empty sets of actions: the stack never holds more than `LANES × acts.len()`.
+/// that go left (or right if none do) and a fork with the others is stacked, and a walk at a leaf
+/// is reported and its lane given the next walk at once, from the stack first (waiting for every
+/// lane to reach a leaf left most steps idle: leaves lie at very different depths). So a slot
+/// starts only when the stack is empty, at most [`LANES`] slots have walks left, and the walks of a
+/// slot carry disjoint non-empty sets of actions: the stack never holds more than
+/// `LANES × acts.len()`. Each (slot, action) gets one leaf, which the callers put in a cell of its
+/// own, so the order the leaves are reported in does not reach the results.
 #[inline(always)]
 fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     n_slots: usize,
@@ -367,6 +370,9 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     if n_slots == 0 {
         return;
     }
+    // The unchecked reads below rely on this (offsets grow with the slot) and on the tree
+    // invariant that every child index of a node is in its tree.
+    assert!(d >= 1 && offset(n_slots - 1) + d <= data.len(), "every slot's state is in `data`");
     let full = u64::MAX >> (64 - acts.len());
     let mut small = [Fork::default(); LANES * 16];
     let mut big = Vec::new();
@@ -378,60 +384,66 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     };
     let mut top = 0;
     let feat_d = d as u32;
-    // Lane l: at node `at[l]` of `nodes[l]`, state at `off[l]`, actions `masks[l]`, for `slots[l]`.
+    // Lane l: at node `at[l]` of `nodes[l]`, state at `off[l]`, actions `masks[l]`, for `slots[l]`;
+    // `live` has a bit per lane with a walk (an idle lane stays where it is, unreported).
     let mut at = [0u32; LANES];
     let mut off = [0usize; LANES];
     let mut masks = [0u64; LANES];
     let mut slots = [0u32; LANES];
     let mut nodes: [&[Node]; LANES] = [tree(0); LANES];
     let mut next = 0;
-    loop {
-        let mut n = 0;
-        while n < LANES {
+    let mut live = 0u32;
+    // Gives lane l the next walk, from the stack first; false when there is none.
+    macro_rules! take {
+        ($l:expr) => {{
+            let l = $l;
             if top > 0 {
                 top -= 1;
                 let f = stack[top];
                 let s = f.slot as usize;
-                (nodes[n], off[n], at[n], masks[n], slots[n]) = (tree(s), offset(s), f.node, f.mask, f.slot);
+                (nodes[l], off[l], at[l], masks[l], slots[l]) = (tree(s), offset(s), f.node, f.mask, f.slot);
+                true
             } else if next < n_slots {
-                (nodes[n], off[n], at[n], masks[n], slots[n]) = (tree(next), offset(next), 0, full, next as u32);
+                (nodes[l], off[l], at[l], masks[l], slots[l]) = (tree(next), offset(next), 0, full, next as u32);
                 next += 1;
+                true
             } else {
-                break;
+                false
             }
-            n += 1;
+        }};
+    }
+    for l in 0..LANES {
+        if take!(l) {
+            live |= 1 << l;
         }
-        if n == 0 {
-            return;
-        }
-        // Spare lanes repeat lane 0's walk, unreported.
-        for l in n..LANES {
-            (nodes[l], off[l], at[l]) = (nodes[0], off[0], at[0]);
-        }
-        let live = (1u32 << n) - 1;
-        loop {
-            let (mut at_leaf, mut at_action) = (0u32, 0u32);
-            for round in 0..ROUNDS {
-                for l in 0..LANES {
-                    let node = if SAME_TREE { nodes[0] } else { nodes[l] }[at[l] as usize];
-                    let go = node.feat < feat_d;
-                    let x = data[if SAME_STATE { 0 } else { off[l] } + (node.feat as usize).min(d - 1)];
-                    let step = node.left + ((x <= node.val) as u32 ^ 1);
-                    at[l] = if go { step } else { at[l] };
-                    if round == ROUNDS - 1 {
-                        at_leaf |= ((node.feat > feat_d) as u32) << l;
-                        at_action |= ((node.feat == feat_d) as u32) << l;
-                    }
+    }
+    while live != 0 {
+        let mut stopped = 0u32;
+        for round in 0..ROUNDS {
+            for l in 0..LANES {
+                let tree = if SAME_TREE { nodes[0] } else { nodes[l] };
+                debug_assert!((at[l] as usize) < tree.len());
+                // SAFETY: walks start at the root or at a child of a node, and step only to
+                // children, which every tree holds; the state index is within `data` (asserted
+                // above). Bounds checks here would double the instructions of the hottest loop.
+                let node = unsafe { *tree.get_unchecked(at[l] as usize) };
+                let go = node.feat < feat_d;
+                let i = if SAME_STATE { 0 } else { off[l] } + (node.feat as usize).min(d - 1);
+                let x = unsafe { *data.get_unchecked(i) };
+                let step = node.left + ((x <= node.val) as u32 ^ 1);
+                at[l] = if go { step } else { at[l] };
+                // A walk that stops (leaf or action split) stays stopped, so the last step tells.
+                if round == ROUNDS - 1 {
+                    stopped |= (!go as u32) << l;
                 }
             }
-            at_action &= live;
-            if at_leaf & live == live {
-                break;
-            }
-            while at_action != 0 {
-                let l = at_action.trailing_zeros() as usize;
-                at_action &= at_action - 1;
-                let node = nodes[l][at[l] as usize];
+        }
+        stopped &= live;
+        while stopped != 0 {
+            let l = stopped.trailing_zeros() as usize;
+            stopped &= stopped - 1;
+            let node = nodes[l][at[l] as usize];
+            if node.feat == feat_d {
                 let mut le = 0u64;
                 for (j, &a) in acts.iter().enumerate() {
                     le |= ((a <= node.val) as u64) << j;
@@ -446,10 +458,12 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
                     }
                     (at[l], masks[l]) = (node.left, left);
                 }
+            } else {
+                leaf(slots[l] as usize, masks[l], node.val);
+                if !take!(l) {
+                    live &= !(1 << l);
+                }
             }
-        }
-        for l in 0..n {
-            leaf(slots[l] as usize, masks[l], nodes[l][at[l] as usize].val);
         }
     }
 }
