@@ -527,6 +527,8 @@ struct Data {
     /// `0..n` when the trees record each row's leaf (the row indices are partitioned with the
     /// columns), else empty.
     idx: Vec<u32>,
+    /// Each column's (min, max): the root's ranges, the same for every tree, so taken once.
+    ranges: Vec<(f32, f32)>,
 }
 
 impl Data {
@@ -550,7 +552,10 @@ impl Data {
             }
         }
         let idx = if track_rows { (0..n as u32).collect() } else { Vec::new() };
-        Ok(Data { n, d, x, y: y.to_vec(), idx })
+        // Exact extrema, so the portable kernel gives what the vector one would (up to the sign
+        // of zero, which `canonical` settles).
+        let ranges = x.chunks_exact(n).map(|col| canonical(portable::min_max(col))).collect();
+        Ok(Data { n, d, x, y: y.to_vec(), idx, ranges })
     }
 }
 
@@ -701,7 +706,7 @@ fn build_tree_impl<const WIDE: bool>(
     ws.stack.clear();
     ws.stack.push(Pending { slot: 0, start: 0, end: n_all, depth: 0 });
     ws.ranges.clear();
-    ws.ranges.extend((0..d).map(|f| canonical(min_max::<WIDE>(&data.x[f * n_all..(f + 1) * n_all]))));
+    ws.ranges.extend_from_slice(&data.ranges);
 
     while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
         let n = end - start;
@@ -847,16 +852,6 @@ fn record_leaf(slot: usize, rows: &[u32], leaf_of: &mut [u32]) {
 #[inline(always)]
 fn canonical((lo, hi): (f32, f32)) -> (f32, f32) {
     (lo + 0.0, hi + 0.0)
-}
-
-#[inline(always)]
-fn min_max<const WIDE: bool>(xs: &[f32]) -> (f32, f32) {
-    #[cfg(target_arch = "x86_64")]
-    if WIDE {
-        // SAFETY: see build_tree_impl.
-        return unsafe { avx512::min_max(xs) };
-    }
-    portable::min_max(xs)
 }
 
 #[inline(always)]
@@ -1091,29 +1086,6 @@ mod avx512 {
         store(q0, &mut q[..8]);
         store(q1, &mut q[8..]);
         finish_mean_var(y0, s, q, n)
-    }
-
-    /// [`portable::min_max`].
-    #[inline]
-    #[target_feature(enable = "avx512f")]
-    pub fn min_max(xs: &[f32]) -> (f32, f32) {
-        let n = xs.len();
-        let (mut lo, mut hi) = (_mm512_set1_ps(f32::INFINITY), _mm512_set1_ps(f32::NEG_INFINITY));
-        let full = n / 16 * 16;
-        for i in (0..full).step_by(16) {
-            // SAFETY: rows i..i + 16 exist.
-            let x = unsafe { _mm512_loadu_ps(xs.as_ptr().add(i)) };
-            lo = _mm512_min_ps(lo, x);
-            hi = _mm512_max_ps(hi, x);
-        }
-        if full < n {
-            let m = valid(n - full);
-            // SAFETY: the mask covers only rows full..n; masked-out lanes are not read.
-            let x = unsafe { _mm512_maskz_loadu_ps(m, xs.as_ptr().add(full)) };
-            lo = _mm512_mask_min_ps(lo, m, lo, x);
-            hi = _mm512_mask_max_ps(hi, m, hi, x);
-        }
-        (_mm512_reduce_min_ps(lo), _mm512_reduce_max_ps(hi))
     }
 
     /// [`portable::count_sum_blocks`].
