@@ -1352,6 +1352,36 @@ mod tests {
         a.iter().zip(b).map(|(p, q)| (p - q) * (p - q)).sum::<f64>() / a.len() as f64
     }
 
+    /// FNV-1a over the bits of `vals`.
+    fn fingerprint(vals: impl IntoIterator<Item = f64>) -> u64 {
+        vals.into_iter().fold(0xcbf2_9ce4_8422_2325, |h, v| (h ^ v.to_bits()).wrapping_mul(0x100_0000_01b3))
+    }
+
+    /// Pins the trees of fixed seeds bit for bit (through their in-sample predictions, their Q of
+    /// every action on fresh states, and their sizes): speed work on the builder or the walks must
+    /// not change a tree, or the committed reference runs would no longer reproduce from their seeds.
+    #[test]
+    fn forests_are_pinned_bit_for_bit() {
+        let n = 2500;
+        let xs = random_x(n, 2, 70);
+        let mut r = rng::stream(71, "test-pinned", &[]);
+        let acts: Vec<f64> = (0..n).map(|_| rng::below(&mut r, 5) as f64).collect();
+        let x: Vec<f64> = (0..n).flat_map(|i| [xs[2 * i], xs[2 * i + 1], acts[i]]).collect();
+        let y: Vec<f64> = (0..n).map(|i| target(&xs[2 * i..]) + 0.3 * (acts[i] - 2.0).abs()).collect();
+        let states = random_x(700, 2, 72);
+        let actions = [0.0, 1.0, 2.0, 3.0, 4.0];
+        let mut prints = Vec::new();
+        for (p, seed) in [(params(12, Some(9), 8, 4), 1), (params(6, None, 2, 1), 2), (params(9, Some(4), 4, 2), 3)] {
+            let mut in_sample = vec![0.0; n];
+            let (m, _) = p.fit_predict(Rows::new(&x, 3).unwrap(), &y, seed, &mut in_sample).unwrap();
+            let mut q = vec![0.0; 700 * actions.len()];
+            m.predict_actions_into(Rows::new(&states, 2).unwrap(), &actions, &mut q);
+            let sizes = (0..m.n_trees()).map(|t| (m.n_nodes(t) * 64 + m.tree_depth(t)) as f64);
+            prints.push(fingerprint(in_sample.into_iter().chain(q).chain(sizes)));
+        }
+        assert_eq!(prints, [0xbdcf_bb03_52ff_ea44, 0x8a98_1ce4_84af_8f0f, 0x1dc4_9790_a165_8727], "{prints:#x?}");
+    }
+
     #[test]
     fn depth_limit_bounds_depth_and_leaves() {
         let (x, y) = synthetic(1500, 1);
