@@ -582,8 +582,7 @@ struct Workspace {
     /// Each pending node's per-feature (min, max), `d` entries per node in stack order: a split
     /// computes its children's while it partitions them, so no node reads its columns for them.
     ranges: Vec<(f32, f32)>,
-    /// The current node's ranges, and its children's.
-    cur: Vec<(f32, f32)>,
+    /// The children's ranges of the node being split.
     left_ranges: Vec<(f32, f32)>,
     right_ranges: Vec<(f32, f32)>,
 }
@@ -605,7 +604,6 @@ impl Workspace {
             sums: vec![LeftSums::default(); d],
             stack: Vec::new(),
             ranges: Vec::new(),
-            cur: Vec::with_capacity(d),
             left_ranges: vec![(0.0, 0.0); d],
             right_ranges: vec![(0.0, 0.0); d],
         }
@@ -710,10 +708,8 @@ fn build_tree_impl<const WIDE: bool>(
 
     while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
         let n = end - start;
+        // This node's ranges are the top `d` entries, read by the draws and then dropped.
         let r0 = ws.ranges.len() - d;
-        ws.cur.clear();
-        ws.cur.extend_from_slice(&ws.ranges[r0..]);
-        ws.ranges.truncate(r0);
         counts[slot] = n as u32;
         let (src_x, src_y, src_i, dst_x, dst_y, dst_i) = if depth == 0 {
             (&data.x[..], &data.y[..], &data.idx[..], &mut ws.bx[..], &mut ws.by[..], &mut ws.bi[..])
@@ -736,7 +732,7 @@ fn build_tree_impl<const WIDE: bool>(
             // count all candidates in one sweep, so the node's targets are read once, not d times.
             ws.cands.clear();
             for &f in &ws.order {
-                let (lo, hi) = ws.cur[f];
+                let (lo, hi) = ws.ranges[r0 + f];
                 let (lo, hi) = (lo as f64, hi as f64);
                 if hi <= lo + FEATURE_THRESHOLD {
                     continue;
@@ -767,6 +763,7 @@ fn build_tree_impl<const WIDE: bool>(
             }
         }
 
+        ws.ranges.truncate(r0);
         let Some(split) = best else {
             nodes[slot] = Node::leaf(slot, mean);
             record_leaf(slot, if track { &src_i[start..end] } else { &[] }, leaf_of);
