@@ -213,10 +213,16 @@ impl Regressor for ExtraTrees {
             }
             return;
         }
+        // The walks read one value past each state (see `forked_walks`), so the states are copied
+        // once with a value after the last: each block's slice then ends one value past its rows.
+        let d = states.n_cols();
+        let mut padded = Vec::with_capacity(states.data().len() + 1);
+        padded.extend_from_slice(states.data());
+        padded.push(0.0);
         let rows_per_block = (ACTION_BLOCK / k).max(LANES);
         let work = |(b, block): (usize, &mut [f64])| {
-            let start = b * rows_per_block;
-            self.predict_actions_block(states.slice(start, start + block.len() / k), actions, block);
+            let (start, end) = (b * rows_per_block, b * rows_per_block + block.len() / k);
+            self.predict_actions_block(&padded[start * d..end * d + 1], d, actions, block);
         };
         if out.len() * self.trees.len() < 200_000 {
             out.chunks_mut(rows_per_block * k).enumerate().for_each(work);
@@ -261,19 +267,20 @@ impl ExtraTrees {
     /// [`Regressor::predict_actions_into`] for a block of at least [`LANES`] states, trees
     /// outermost (so each tree's nodes stay in cache), the walks in flight over states. `out`
     /// accumulates the sums in tree order (each output gets one leaf per tree), then is divided.
-    fn predict_actions_block(&self, states: Rows<'_>, actions: &[f64], out: &mut [f64]) {
+    fn predict_actions_block(&self, states: &[f64], d: usize, actions: &[f64], out: &mut [f64]) {
         let k = actions.len();
+        let n = out.len() / k;
         out.fill(0.0);
         for tree in &self.trees {
             for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
                 let base = c * MASK_ACTIONS;
                 forked_walks::<true, false>(
-                    states.n_rows(),
+                    n,
                     acts,
-                    states.data(),
-                    states.n_cols(),
+                    states,
+                    d,
                     |_| &tree.nodes,
-                    |r| r * states.n_cols(),
+                    |r| r * d,
                     |r, mut mask, v| {
                         let acc = &mut out[r * k + base..];
                         while mask != 0 {
@@ -294,6 +301,7 @@ impl ExtraTrees {
     /// values of a group of trees are buffered, then added in tree order.
     fn predict_actions_state(&self, state: &[f64], actions: &[f64], out: &mut [f64]) {
         out.fill(0.0);
+        let padded: Vec<f64> = state.iter().copied().chain([0.0]).collect();
         let mut vals = [0.0; STATE_VALUES];
         for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
             let kc = acts.len();
@@ -302,7 +310,7 @@ impl ExtraTrees {
                 forked_walks::<false, true>(
                     group.len(),
                     acts,
-                    state,
+                    &padded,
                     state.len(),
                     |t| &group[t].nodes,
                     |_| 0,
@@ -346,7 +354,9 @@ struct Fork {
 /// state `data[offset(s)..offset(s) + d]`, for every action `a` of `acts` (1 to 64 of them) at
 /// once, and calls `leaf(s, mask, value)` for each leaf reached, `mask` holding the actions (bit j
 /// for `acts[j]`) that reach it: every (slot, action) gets exactly one call. A walk forks only at
-/// the nodes that split on the action (feature `d`), and compares as [`Tree::step`] does.
+/// the nodes that split on the action (feature `d`), and compares as [`Tree::step`] does. `data`
+/// must hold a value after the last slot's state: a walk at an action split reads `x[d]` (unused)
+/// rather than pay for clamping the index in every step.
 ///
 /// [`LANES`] walks advance together, branch-free, [`ROUNDS`] steps at a time, each stopping at a
 /// leaf or an action split; between rounds, a walk at an action split goes on with the actions
@@ -372,7 +382,7 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     }
     // The unchecked reads below rely on this (offsets grow with the slot) and on the tree
     // invariant that every child index of a node is in its tree.
-    assert!(d >= 1 && offset(n_slots - 1) + d <= data.len(), "every slot's state is in `data`");
+    assert!(d >= 1 && offset(n_slots - 1) + d < data.len(), "every slot's state, and one value more, is in `data`");
     let full = u64::MAX >> (64 - acts.len());
     let mut small = [Fork::default(); LANES * 16];
     let mut big = Vec::new();
@@ -428,7 +438,9 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
                 // above). Bounds checks here would double the instructions of the hottest loop.
                 let node = unsafe { *tree.get_unchecked(at[l] as usize) };
                 let go = node.feat < feat_d;
-                let i = if SAME_STATE { 0 } else { off[l] } + (node.feat as usize).min(d - 1);
+                // A leaf reads the state's first value and an action split the value after the
+                // state: both are in `data` (asserted), and neither moves the walk.
+                let i = if SAME_STATE { 0 } else { off[l] } + (node.feat & !LEAF) as usize;
                 let x = unsafe { *data.get_unchecked(i) };
                 let step = node.left + ((x <= node.val) as u32 ^ 1);
                 at[l] = if go { step } else { at[l] };
