@@ -653,13 +653,12 @@ impl Default for LeftSums {
     }
 }
 
-/// The best candidate split of a node so far.
+/// A node's chosen split.
 #[derive(Clone, Copy)]
 struct Split {
     feat: usize,
     thr: f32,
     n_left: usize,
-    proxy: f64,
 }
 
 /// Builds one tree, with AVX-512 kernels when the CPU has them. Both paths build the same tree: the
@@ -758,20 +757,25 @@ fn build_tree_impl<const WIDE: bool>(
             }
             let sums = &mut ws.sums[..ws.cands.len()];
             count_sum_left::<WIDE>(src_x, n_all, start, ys, &ws.cands, sums);
-            for (c, s) in ws.cands.iter().zip(sums.iter()) {
+            // The first candidate with the largest proxy among those leaving `min_leaf` rows on
+            // each side, chosen with selects: which candidate wins is a coin toss, and
+            // mispredicted branches cost a small node more than the arithmetic.
+            let (mut best_i, mut best_proxy) = (usize::MAX, f64::NEG_INFINITY);
+            for (i, s) in sums.iter().enumerate() {
                 let (n_left, sum_left) = (s.count, s.sum);
                 let n_right = n - n_left;
-                if n_left < min_leaf || n_right < min_leaf {
-                    continue;
-                }
                 // Variance reduction × n = n_l n_r / n · (mean_l − mean_r)², written with the
                 // left sum's deviation from its share of the total so a large target offset
-                // cancels before squaring.
+                // cancels before squaring. With both sides non-empty it is never NaN, so the
+                // first valid candidate beats −∞; an invalid one's value is never looked at.
                 let dev = sum_left - n_left as f64 * mean;
                 let proxy = dev * dev * (1.0 / n_left as f64 + 1.0 / n_right as f64);
-                if best.is_none_or(|b| proxy > b.proxy) {
-                    best = Some(Split { feat: c.feat, thr: c.thr, n_left, proxy });
-                }
+                let take = (n_left >= min_leaf) & (n_right >= min_leaf) & (proxy > best_proxy);
+                best_i = if take { i } else { best_i };
+                best_proxy = if take { proxy } else { best_proxy };
+            }
+            if let Some(c) = ws.cands.get(best_i) {
+                best = Some(Split { feat: c.feat, thr: c.thr, n_left: sums[best_i].count });
             }
         }
 
@@ -1302,7 +1306,12 @@ mod avx512 {
 /// The largest `f32` not above `v` (finite `v` within the `f32` range).
 fn round_down_f32(v: f64) -> f32 {
     let t = v as f32;
-    if t as f64 > v { t.next_down() } else { t }
+    // `t.next_down()` for a finite t, without branches: `t > v` for half the thresholds and t's
+    // sign are coin tosses, and their mispredictions cost more than the rest of a small node's
+    // draws (±0 go to the smallest negative subnormal, every other t one ulp toward −∞).
+    let bits = t.to_bits();
+    let below = if bits << 1 == 0 { (1 << 31) | 1 } else { bits.wrapping_add(((bits >> 31) << 1).wrapping_sub(1)) };
+    f32::from_bits(if t as f64 > v { below } else { bits })
 }
 
 /// The `f64` threshold `T` with `x <= T` ⟺ `(x as f32) <= t` for every `f64` x.
@@ -1723,6 +1732,22 @@ mod tests {
         for v in [0.3, -0.3, 1.0 / 3.0, 1e-3, 12345.678] {
             let t = round_down_f32(v);
             assert!(t as f64 <= v && (t.next_up() as f64) > v);
+        }
+    }
+
+    #[test]
+    fn round_down_f32_is_the_largest_f32_not_above() {
+        let mut r = rng::stream(1, "test-round-down", &[]);
+        let mut vs: Vec<f64> = (0..20_000).map(|_| rng::uniform(&mut r, -2.0, 2.0)).collect();
+        vs.extend((0..2000).map(|_| rng::uniform(&mut r, -1e-44, 1e-44)));
+        vs.extend([0.0, -0.0, 1e-300, -1e-300, 1.0, -1.0, f32::MAX as f64, -(f32::MAX as f64)]);
+        vs.extend([f32::MIN_POSITIVE as f64, -(f32::MIN_POSITIVE as f64), 1e-45, -1e-45]);
+        for &v in &vs {
+            let textbook = {
+                let t = v as f32;
+                if t as f64 > v { t.next_down() } else { t }
+            };
+            assert_eq!(round_down_f32(v).to_bits(), textbook.to_bits(), "v {v:e}");
         }
     }
 }
