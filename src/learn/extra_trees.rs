@@ -938,6 +938,12 @@ fn hsum8(v: [f64; 8]) -> f64 {
 fn finish_mean_var(y0: f64, s: [f64; 16], q: [f64; 16], n: usize) -> (f64, f64) {
     let s = hsum8(std::array::from_fn(|j| s[j] + s[j + 8]));
     let q = hsum8(std::array::from_fn(|j| q[j] + q[j + 8]));
+    mean_var_of_sums(y0, s, q, n)
+}
+
+/// The mean and population variance from the reduced Σ(y − y0) and Σ(y − y0)² over n rows.
+#[inline(always)]
+fn mean_var_of_sums(y0: f64, s: f64, q: f64, n: usize) -> (f64, f64) {
     let m = s / n as f64;
     (y0 + m, (q / n as f64 - m * m).max(0.0))
 }
@@ -1042,7 +1048,7 @@ mod portable {
 /// many, and a scalar loop's unpredictable branches cost more than the vector work).
 #[cfg(target_arch = "x86_64")]
 mod avx512 {
-    use super::{LeftSums, finish_mean_var};
+    use super::{LeftSums, mean_var_of_sums};
     use std::arch::x86_64::*;
 
     /// Whether this CPU runs these kernels.
@@ -1093,12 +1099,19 @@ mod avx512 {
             q0 = _mm512_add_pd(q0, _mm512_mul_pd(v0, v0));
             q1 = _mm512_add_pd(q1, _mm512_mul_pd(v1, v1));
         }
-        let (mut s, mut q) = ([0.0; 16], [0.0; 16]);
-        store(s0, &mut s[..8]);
-        store(s1, &mut s[8..]);
-        store(q0, &mut q[..8]);
-        store(q1, &mut q[8..]);
-        finish_mean_var(y0, s, q, n)
+        // [`super::finish_mean_var`]'s reduction, in registers.
+        let (s, q) = (hsum(_mm512_add_pd(s0, s1)), hsum(_mm512_add_pd(q0, q1)));
+        mean_var_of_sums(y0, s, q, n)
+    }
+
+    /// [`super::hsum8`] of a vector's lanes, by halving in registers (the same order).
+    #[inline]
+    #[target_feature(enable = "avx512f")]
+    fn hsum(v: __m512d) -> f64 {
+        // (v0+v4, v1+v5, v2+v6, v3+v7), then ((v0+v4)+(v2+v6), (v1+v5)+(v3+v7)), then their sum.
+        let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
+        let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
+        _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u)))
     }
 
     /// [`portable::count_sum_blocks`].
@@ -1121,11 +1134,7 @@ mod avx512 {
     #[target_feature(enable = "avx512f,avx512dq,popcnt")]
     pub fn count_sum_node(xs: &[f32], ys: &[f64], t: f32) -> (usize, f64) {
         let (a, count) = accumulate(xs, ys, t, [_mm512_setzero_pd(); 4]);
-        let v = _mm512_add_pd(_mm512_add_pd(a[0], a[1]), _mm512_add_pd(a[2], a[3]));
-        // (v0+v4, v1+v5, v2+v6, v3+v7), then ((v0+v4)+(v2+v6), (v1+v5)+(v3+v7)), then their sum.
-        let w = _mm256_add_pd(_mm512_castpd512_pd256(v), _mm512_extractf64x4_pd::<1>(v));
-        let u = _mm_add_pd(_mm256_castpd256_pd128(w), _mm256_extractf128_pd::<1>(w));
-        (count, _mm_cvtsd_f64(_mm_add_sd(u, _mm_unpackhi_pd(u, u))))
+        (count, hsum(_mm512_add_pd(_mm512_add_pd(a[0], a[1]), _mm512_add_pd(a[2], a[3]))))
     }
 
     /// Adds the targets of the rows with `x <= t` to the 32 lanes `acc` (lane k: rows ≡ k mod 32,
