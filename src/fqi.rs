@@ -235,15 +235,17 @@ impl<'a, L: Learner> Fqi<'a, L> {
         let seed = rng::derive(self.fit_seed, "member", &[k as u64]);
         // The member's predictions on the training rows come with the fit (trees know each row's
         // leaf), so they count as fit time.
-        let (member, info) = self.enc.fit_predict(self.learner, &self.fit_target, seed, &mut self.p_train)?;
+        // Q(x′, ·) of the member comes with it too (trees start the walks of the next states
+        // where their training twins' routes end), timed apart as prediction.
+        let (member, info, next_seconds) =
+            self.enc.fit_predict_next(self.learner, &self.fit_target, seed, &mut self.p_train, &mut self.p_next)?;
         self.fits += 1;
-        let fit_seconds = t0.elapsed().as_secs_f64();
+        let fit_seconds = t0.elapsed().as_secs_f64() - next_seconds;
         if info.stop == StopReason::NonFinite {
             return diverged("non-finite training loss");
         }
 
         let t1 = Instant::now();
-        self.enc.predict_next(&member, &mut self.p_next);
         if bfqi {
             add(&mut self.q_train, &self.p_train);
             add(&mut self.q_next, &self.p_next);
@@ -254,7 +256,7 @@ impl<'a, L: Learner> Fqi<'a, L> {
             self.members.clear();
             self.members.push(member);
         }
-        let predict_seconds = t1.elapsed().as_secs_f64();
+        let predict_seconds = next_seconds + t1.elapsed().as_secs_f64();
         if !self.q_train.iter().chain(&self.q_next).all(|v| v.is_finite()) {
             return diverged("non-finite Q value");
         }

@@ -7,11 +7,12 @@
 //! [`Encoded`] lays a dataset out once for an encoding (the training rows and every (next state,
 //! action) pair), so FQI's iterations only fit and predict.
 
-use super::{FitInfo, Learner, Regressor, Rows, StopReason};
+use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason};
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::rng;
 use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 
 /// How actions reach the learner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -43,6 +44,10 @@ pub struct Encoded {
     train_offsets: Vec<usize>,
     /// Next states `x'_i` (n rows); the models are asked for every action at once.
     next: Vec<f64>,
+    /// Each next state's training twin (see [`NextStates::same`]): `input`, n entries, a training
+    /// row; `per_action`, n per action in action order, a row of that action's model (or
+    /// [`NO_ROW`]). In a dataset of trajectories, `x'_i` is the state of transition i + 1.
+    twins: Vec<u32>,
 }
 
 impl Encoded {
@@ -63,6 +68,7 @@ impl Encoded {
             train_index: Vec::new(),
             train_offsets: Vec::new(),
             next: Vec::new(),
+            twins: Vec::new(),
         };
         match encoding {
             ActionEncoding::Input => {
@@ -103,6 +109,7 @@ impl Encoded {
                 e.next = d.next_state.clone();
             }
         }
+        e.twins = twins(d, &e);
         Ok(e)
     }
 
@@ -122,35 +129,54 @@ impl Encoded {
         }
     }
 
-    /// Fits one Q-function member on targets `y` (one per transition) and leaves its predictions on
-    /// the training rows in `out` (`out[i] = Q(x_i, a_i)`, as [`Encoded::predict_train`] would).
-    /// With `per_action`, model j is fitted on action j's transitions with the seed
-    /// `derive(seed, "action", [j])`.
-    pub fn fit_predict<L: Learner>(
+    /// Fits one Q-function member on targets `y` (one per transition), leaving its predictions on
+    /// the training rows in `out` (`out[i] = Q(x_i, a_i)`, as [`Encoded::predict_train`] would) and
+    /// on every (next state, action) pair in `out_next` (as [`Encoded::predict_next`] would); also
+    /// returns the seconds the latter took. With `per_action`, model j is fitted on action j's
+    /// transitions with the seed `derive(seed, "action", [j])`.
+    pub fn fit_predict_next<L: Learner>(
         &self,
         learner: &L,
         y: &[f64],
         seed: u64,
         out: &mut [f64],
-    ) -> Result<(QModel<L::Model>, FitInfo)> {
+        out_next: &mut [f64],
+    ) -> Result<(QModel<L::Model>, FitInfo, f64)> {
+        let states = Rows::new(&self.next, self.obs_dim)?;
         match self.encoding {
             ActionEncoding::Input => {
-                let (m, info) = learner.fit_predict(Rows::new(&self.train, self.n_inputs())?, y, seed, out)?;
-                Ok((QModel::Input(m), info))
+                let next = NextStates { states, actions: Some(&self.actions), same: &self.twins };
+                let x = Rows::new(&self.train, self.n_inputs())?;
+                let (m, info, seconds) = learner.fit_predict_next(x, y, seed, out, &next, out_next)?;
+                Ok((QModel::Input(m), info, seconds))
             }
             ActionEncoding::PerAction => {
-                let mut models = Vec::with_capacity(self.actions.len());
+                let (na, n) = (self.actions.len(), self.n);
+                let mut models = Vec::with_capacity(na);
                 let mut info = FitInfo { epochs: 0, stop: StopReason::NotIterative };
-                let (mut ys, mut buf) = (Vec::new(), Vec::new());
-                for j in 0..self.actions.len() {
+                let mut seconds = 0.0;
+                let (mut ys, mut buf, mut next_buf) = (Vec::new(), Vec::new(), vec![0.0; n]);
+                for j in 0..na {
                     let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
                     ys.clear();
                     ys.extend(self.train_index[lo..hi].iter().map(|&i| y[i]));
                     buf.resize(hi - lo, 0.0);
                     let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
                     let seed_j = rng::derive(seed, "action", &[j as u64]);
-                    let (m, fi) = learner.fit_predict(Rows::new(x, self.obs_dim)?, &ys, seed_j, &mut buf)?;
+                    let next = NextStates { states, actions: None, same: &self.twins[j * n..(j + 1) * n] };
+                    let (m, fi, s) = learner.fit_predict_next(
+                        Rows::new(x, self.obs_dim)?,
+                        &ys,
+                        seed_j,
+                        &mut buf,
+                        &next,
+                        &mut next_buf,
+                    )?;
                     self.put_action_rows(j, &buf, out);
+                    for (i, &v) in next_buf.iter().enumerate() {
+                        out_next[i * na + j] = v;
+                    }
+                    seconds += s;
                     info.epochs += fi.epochs;
                     // Any non-finite fit makes the member diverged; otherwise report the last reason.
                     if info.stop != StopReason::NonFinite {
@@ -158,7 +184,7 @@ impl Encoded {
                     }
                     models.push(m);
                 }
-                Ok((QModel::PerAction(models), info))
+                Ok((QModel::PerAction(models), info, seconds))
             }
         }
     }
@@ -200,6 +226,35 @@ impl Encoded {
     }
 }
 
+/// Each next state's training twin for `e` (see [`Encoded`]'s `twins`): the first training row with
+/// the same state, value for value (bit patterns, so the twin's inputs are exactly the state's).
+fn twins(d: &Dataset, e: &Encoded) -> Vec<u32> {
+    let (n, od) = (d.len(), d.obs_dim);
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<u64>>();
+    let (state, next) = (bits(&d.state), bits(&d.next_state));
+    // (state, model) → the model's training row: the transition itself with `input`, its
+    // position among its action's rows with `per_action`.
+    let mut first: HashMap<(&[u64], usize), u32> = HashMap::with_capacity(n);
+    match e.encoding {
+        ActionEncoding::Input => {
+            for i in 0..n {
+                first.entry((&state[i * od..(i + 1) * od], 0)).or_insert(i as u32);
+            }
+        }
+        ActionEncoding::PerAction => {
+            for (j, w) in e.train_offsets.windows(2).enumerate() {
+                for (r, &i) in e.train_index[w[0]..w[1]].iter().enumerate() {
+                    first.entry((&state[i * od..(i + 1) * od], j)).or_insert(r as u32);
+                }
+            }
+        }
+    }
+    let models = if e.encoding == ActionEncoding::Input { 1 } else { e.actions.len() };
+    (0..models)
+        .flat_map(|j| (0..n).map(move |i| (j, i)))
+        .map(|(j, i)| first.get(&(&next[i * od..(i + 1) * od], j)).copied().unwrap_or(NO_ROW))
+        .collect()
+}
 /// One fitted Q-function member under an encoding.
 #[derive(Debug, Clone)]
 pub enum QModel<M> {
@@ -243,6 +298,58 @@ pub fn argmax(values: &[f64]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::dataset;
+    use crate::env::EnvConfig;
+    use crate::learn::extra_trees::ExtraTreesParams;
+
+    #[test]
+    fn next_states_find_their_training_twins() {
+        let c = EnvConfig::by_name("cartpole").unwrap();
+        let (e, od) = (c.env(), c.env().obs_dim());
+        let d = dataset::collect(e, 30, 5).unwrap();
+        let state = |i: usize| &d.state[i * od..(i + 1) * od];
+        let next = |i: usize| &d.next_state[i * od..(i + 1) * od];
+        let input = Encoded::new(&d, e.actions(), ActionEncoding::Input).unwrap();
+        // Within an episode, the next state is the next transition's state.
+        for i in 0..d.len() {
+            let r = input.twins[i];
+            if i + 1 < d.len() && d.episode[i + 1] == d.episode[i] {
+                assert_ne!(r, NO_ROW, "transition {i}");
+            }
+            if r != NO_ROW {
+                assert!(state(r as usize) == next(i) && r as usize <= i + 1, "transition {i}: first twin");
+            }
+        }
+        let found = input.twins.iter().filter(|&&r| r != NO_ROW).count();
+        assert!(found >= d.len() - d.episodes() && found < d.len(), "{found} twins");
+        // Per action: a row of the model of the action the twin took.
+        let per = Encoded::new(&d, e.actions(), ActionEncoding::PerAction).unwrap();
+        for (i, &r) in input.twins.iter().enumerate() {
+            for j in 0..per.actions.len() {
+                let twin = per.twins[j * d.len() + i];
+                let takes_j = r != NO_ROW && d.action[r as usize] == per.actions[j];
+                assert_eq!(twin != NO_ROW, takes_j, "transition {i}, action {j}");
+                if twin != NO_ROW {
+                    let row = per.train_index[per.train_offsets[j] + twin as usize];
+                    assert!(state(row) == next(i), "transition {i}, action {j}");
+                }
+            }
+        }
+        // The predictions with twins are those without, to the bit.
+        let p = ExtraTreesParams { n_trees: 6, max_depth: Some(10), min_samples_split: 2, min_samples_leaf: 1 };
+        for enc in [input, per] {
+            let (n, na) = (d.len(), enc.actions.len());
+            let (mut train, mut next_q) = (vec![0.0; n], vec![0.0; n * na]);
+            let (m, _, seconds) = enc.fit_predict_next(&p, &d.reward, 9, &mut train, &mut next_q).unwrap();
+            assert!(seconds >= 0.0);
+            let (mut want_train, mut want_next) = (vec![0.0; n], vec![0.0; n * na]);
+            enc.predict_train(&m, &mut want_train);
+            enc.predict_next(&m, &mut want_next);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&train), bits(&want_train), "{:?}", enc.encoding);
+            assert_eq!(bits(&next_q), bits(&want_next), "{:?}", enc.encoding);
+        }
+    }
 
     #[test]
     fn argmax_ties_go_first() {

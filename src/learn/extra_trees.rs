@@ -21,11 +21,12 @@
 //! each tree once per state and forks only at the splits on the action (see [`forked_walks`]),
 //! adding the trees in the same order as `predict_row`, so its answers are bit-identical.
 
-use super::{FitInfo, Learner, Regressor, Rows, StopReason, check_training_data};
+use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason, check_training_data};
 use crate::error::{Error, Result, ensure};
 use crate::rng::{self, Rng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::time::Instant;
 
 /// Hyperparameters of an Extra-Trees forest (scikit-learn names and defaults, except the 50 trees).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -60,7 +61,7 @@ impl Learner for ExtraTreesParams {
     }
 
     fn fit(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(ExtraTrees, FitInfo)> {
-        self.fit_impl(x, y, seed, None)
+        Ok((self.fit_impl(x, y, seed, Record::Nothing)?.0, TREE_FIT))
     }
 
     /// Each tree records the leaf every training row lands in while it is built (the rows are
@@ -68,44 +69,93 @@ impl Learner for ExtraTreesParams {
     /// in tree order exactly as `predict_into` adds them: no walk.
     fn fit_predict(&self, x: Rows<'_>, y: &[f64], seed: u64, out: &mut [f64]) -> Result<(ExtraTrees, FitInfo)> {
         assert_eq!(out.len(), x.n_rows(), "one output per row");
-        self.fit_impl(x, y, seed, Some(out))
+        let (model, routes) = self.fit_impl(x, y, seed, Record::Routes(usize::MAX))?;
+        model.predict_training(&routes, out);
+        Ok((model, TREE_FIT))
+    }
+
+    /// A next state equal to a training row's state (its twin) follows the twin's path to the
+    /// twin's leaf, unless a node on that path splits on the action: then it follows it to the
+    /// first such node, the leaf's fork. So each tree records every training row's leaf and each
+    /// leaf's fork, and a next state takes its twin's leaf for every action, or starts its walk at
+    /// the fork. In FQI's trajectories nearly every next state is the next transition's state and
+    /// most leaves have no fork, so most of the walking is skipped. The sums are added in tree
+    /// order as in `predict_actions_into` / `predict_into`, so the results are bit-identical.
+    fn fit_predict_next(
+        &self,
+        x: Rows<'_>,
+        y: &[f64],
+        seed: u64,
+        out: &mut [f64],
+        next: &NextStates<'_>,
+        out_next: &mut [f64],
+    ) -> Result<(ExtraTrees, FitInfo, f64)> {
+        assert_eq!(out.len(), x.n_rows(), "one output per row");
+        let d = next.states.n_cols();
+        let (k, fork_col) = match next.actions {
+            Some(a) => (a.len(), d),
+            None => (1, usize::MAX),
+        };
+        assert_eq!(x.n_cols(), d + next.actions.is_some() as usize, "the states are the inputs before the action");
+        assert_eq!(next.same.len(), next.states.n_rows(), "one hint per state");
+        assert_eq!(out_next.len(), next.states.n_rows() * k, "one output per state (and action)");
+        let (model, routes) = self.fit_impl(x, y, seed, Record::Routes(fork_col))?;
+        model.predict_training(&routes, out);
+        let t = Instant::now();
+        model.predict_next_routed(next, &routes, out_next);
+        Ok((model, TREE_FIT, t.elapsed().as_secs_f64()))
     }
 }
 
+/// Where the training rows end up in one tree (see [`Record::Routes`]).
+struct Routes {
+    /// Per row, its leaf, as an index into `value` and `fork`.
+    leaf_of: Vec<u32>,
+    /// The leaves the rows reach, in the order they were made: small arrays (a few rows per leaf
+    /// at least), where the rows' lookups at random stay in cache, unlike the tree's nodes.
+    value: Vec<f64>,
+    /// The first node on the leaf's path that splits on [`Data::fork_col`], or [`NO_FORK`]: where
+    /// a walk with the leaf's rows' state and any action leaves their path.
+    fork: Vec<u32>,
+}
+
+/// No split on the fork column above a leaf (never a node index: a tree has < 2^32 − 1 nodes).
+const NO_FORK: u32 = u32::MAX;
+
+/// What a tree fit reports (trees are not iterative).
+const TREE_FIT: FitInfo = FitInfo { epochs: 0, stop: StopReason::NotIterative };
+
+/// What the trees record for each training row while they are built.
+#[derive(Debug, Clone, Copy)]
+enum Record {
+    Nothing,
+    /// Its leaf, and each leaf's fork: its first ancestor that splits on this column (none for
+    /// `usize::MAX`).
+    Routes(usize),
+}
+
 impl ExtraTreesParams {
-    fn fit_impl(&self, x: Rows<'_>, y: &[f64], seed: u64, out: Option<&mut [f64]>) -> Result<(ExtraTrees, FitInfo)> {
+    /// Fits the forest; with [`Record::Routes`], also returns where the training rows end up in
+    /// each tree.
+    fn fit_impl(&self, x: Rows<'_>, y: &[f64], seed: u64, record: Record) -> Result<(ExtraTrees, Vec<Routes>)> {
         self.check()?;
         check_training_data(x, y)?;
-        let data = Data::new(x, y, out.is_some())?;
-        let built: Vec<(Tree, Vec<u32>)> = (0..self.n_trees)
+        let data = Data::new(x, y, record)?;
+        let built: Vec<(Tree, Routes)> = (0..self.n_trees)
             .into_par_iter()
             // One workspace per rayon split (a few per fit), not per tree: each costs page faults.
             .map_init(
                 || Workspace::new(data.d, data.n),
                 |ws, t| {
-                    let mut leaf_of = if data.idx.is_empty() { Vec::new() } else { vec![0u32; data.n] };
-                    let tree = build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut leaf_of);
-                    (tree, leaf_of)
+                    let m = if data.idx.is_empty() { 0 } else { data.n };
+                    let mut routes = Routes { leaf_of: vec![0; m], value: Vec::new(), fork: Vec::new() };
+                    let tree = build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut routes);
+                    (tree, routes)
                 },
             )
             .collect();
-        if let Some(out) = out {
-            let m = built.len() as f64;
-            out.par_chunks_mut(PREDICT_BLOCK).enumerate().for_each(|(b, block)| {
-                let start = b * PREDICT_BLOCK;
-                block.fill(0.0);
-                for (tree, leaf_of) in &built {
-                    for (o, &leaf) in block.iter_mut().zip(&leaf_of[start..]) {
-                        *o += tree.nodes[leaf as usize].val;
-                    }
-                }
-                for o in block.iter_mut() {
-                    *o /= m;
-                }
-            });
-        }
-        let model = ExtraTrees { n_inputs: data.d, trees: built.into_iter().map(|(t, _)| t).collect() };
-        Ok((model, FitInfo { epochs: 0, stop: StopReason::NotIterative }))
+        let (trees, routes) = built.into_iter().unzip();
+        Ok((ExtraTrees { n_inputs: data.d, trees }, routes))
     }
 }
 
@@ -213,22 +263,8 @@ impl Regressor for ExtraTrees {
             }
             return;
         }
-        // The walks read one value past each state (see `forked_walks`), so the states are copied
-        // once with a value after the last: each block's slice then ends one value past its rows.
         let d = states.n_cols();
-        let mut padded = Vec::with_capacity(states.data().len() + 1);
-        padded.extend_from_slice(states.data());
-        padded.push(0.0);
-        let rows_per_block = (ACTION_BLOCK / k).max(LANES);
-        let work = |(b, block): (usize, &mut [f64])| {
-            let (start, end) = (b * rows_per_block, b * rows_per_block + block.len() / k);
-            self.predict_actions_block(&padded[start * d..end * d + 1], d, actions, block);
-        };
-        if out.len() * self.trees.len() < 200_000 {
-            out.chunks_mut(rows_per_block * k).enumerate().for_each(work);
-        } else {
-            out.par_chunks_mut(rows_per_block * k).enumerate().for_each(work);
-        }
+        self.state_blocks(states, k, out, |padded, _, block| self.predict_actions_block(padded, d, actions, block));
     }
 }
 
@@ -280,7 +316,7 @@ impl ExtraTrees {
                     states,
                     d,
                     |_| &tree.nodes,
-                    |r| r * d,
+                    |r| (r * d, 0),
                     |r, mut mask, v| {
                         let acc = &mut out[r * k + base..];
                         while mask != 0 {
@@ -313,7 +349,7 @@ impl ExtraTrees {
                     &padded,
                     state.len(),
                     |t| &group[t].nodes,
-                    |_| 0,
+                    |_| (0, 0),
                     |t, mut mask, v| {
                         let row = &mut vals[t * kc..];
                         while mask != 0 {
@@ -336,6 +372,143 @@ impl ExtraTrees {
     }
 }
 
+impl ExtraTrees {
+    /// Calls `work(states, first, out)` for blocks of [`ACTION_BLOCK`] outputs (`k` per state), in
+    /// parallel when there is enough work: `states` holds the block's states from state `first`
+    /// on, and one value more, which [`forked_walks`] may read (the states are copied once, with a
+    /// value after the last).
+    fn state_blocks(
+        &self,
+        states: Rows<'_>,
+        k: usize,
+        out: &mut [f64],
+        work: impl Fn(&[f64], usize, &mut [f64]) + Sync,
+    ) {
+        let d = states.n_cols();
+        let mut padded = Vec::with_capacity(states.data().len() + 1);
+        padded.extend_from_slice(states.data());
+        padded.push(0.0);
+        let rows_per_block = (ACTION_BLOCK / k).max(LANES);
+        let work = |(b, block): (usize, &mut [f64])| {
+            let (start, end) = (b * rows_per_block, b * rows_per_block + block.len() / k);
+            work(&padded[start * d..end * d + 1], start, block);
+        };
+        if out.len() * self.trees.len() < 200_000 {
+            out.chunks_mut(rows_per_block * k).enumerate().for_each(work);
+        } else {
+            out.par_chunks_mut(rows_per_block * k).enumerate().for_each(work);
+        }
+    }
+
+    /// The training rows' predictions from their recorded leaves; bit-identical to `predict_into`.
+    fn predict_training(&self, routes: &[Routes], out: &mut [f64]) {
+        let m = self.trees.len() as f64;
+        out.par_chunks_mut(PREDICT_BLOCK).enumerate().for_each(|(b, block)| {
+            let start = b * PREDICT_BLOCK;
+            block.fill(0.0);
+            for route in routes {
+                for (o, &leaf) in block.iter_mut().zip(&route.leaf_of[start..]) {
+                    *o += route.value[leaf as usize];
+                }
+            }
+            for o in block.iter_mut() {
+                *o /= m;
+            }
+        });
+    }
+
+    /// [`NextStates::predict`], each state with a training twin taking the twin's leaf, or starting
+    /// its walk at the leaf's fork (see [`Routes`]), in each tree.
+    fn predict_next_routed(&self, next: &NextStates<'_>, routes: &[Routes], out: &mut [f64]) {
+        // With the state alone as input, one placeholder action: no tree splits on column d.
+        let acts = next.actions.unwrap_or(&[0.0]);
+        let (d, k) = (next.states.n_cols(), acts.len());
+        if k == 0 || next.states.n_rows() == 0 {
+            return;
+        }
+        self.state_blocks(next.states, k, out, |states, first, block| {
+            let same = &next.same[first..first + block.len() / k];
+            self.predict_routed_block(states, d, acts, same, routes, block);
+        });
+    }
+
+    /// [`ExtraTrees::predict_actions_block`] for states with training twins (`same`): a walk starts
+    /// at the fork of the twin's leaf, and needs no walking at all when there is none.
+    fn predict_routed_block(
+        &self,
+        states: &[f64],
+        d: usize,
+        acts: &[f64],
+        same: &[u32],
+        routes: &[Routes],
+        out: &mut [f64],
+    ) {
+        let k = acts.len();
+        // Until a state's first walk that reaches a split, every tree gives all its actions one
+        // leaf, so their sums are equal and one is kept (`shared`); the walk spreads it to the
+        // actions' cells (`spread`), which then add their own leaves. Each cell's sum is thus the
+        // same sequence of additions as in `predict_actions_block`.
+        let mut shared = vec![0.0; same.len()];
+        let mut spread = vec![false; same.len()];
+        // (state, node) of the walks still to take in the tree at hand.
+        let mut walks: Vec<(u32, u32)> = Vec::with_capacity(same.len());
+        for (tree, route) in self.trees.iter().zip(routes) {
+            walks.clear();
+            for (i, &r) in same.iter().enumerate() {
+                // A state without a twin walks from the root.
+                // The twin's leaf, unless its path splits on the action (then the walk starts at
+                // that split); a state without a twin walks from the root.
+                let (leaf, at) = if r == NO_ROW {
+                    (0, 0)
+                } else {
+                    let leaf = route.leaf_of[r as usize] as usize;
+                    (leaf, route.fork[leaf])
+                };
+                if at == NO_FORK && !spread[i] {
+                    shared[i] += route.value[leaf];
+                } else if at == NO_FORK {
+                    for o in &mut out[i * k..(i + 1) * k] {
+                        *o += route.value[leaf];
+                    }
+                } else {
+                    if !spread[i] {
+                        out[i * k..(i + 1) * k].fill(shared[i]);
+                        spread[i] = true;
+                    }
+                    walks.push((i as u32, at));
+                }
+            }
+            for (c, chunk) in acts.chunks(MASK_ACTIONS).enumerate() {
+                let base = c * MASK_ACTIONS;
+                forked_walks::<true, false>(
+                    walks.len(),
+                    chunk,
+                    states,
+                    d,
+                    |_| &tree.nodes,
+                    |w| (walks[w].0 as usize * d, walks[w].1),
+                    |w, mut mask, v| {
+                        let acc = &mut out[walks[w].0 as usize * k + base..];
+                        while mask != 0 {
+                            acc[mask.trailing_zeros() as usize] += v;
+                            mask &= mask - 1;
+                        }
+                    },
+                );
+            }
+        }
+        let m = self.trees.len() as f64;
+        for ((cells, &sum), &spread) in out.chunks_exact_mut(k).zip(&shared).zip(&spread) {
+            if !spread {
+                cells.fill(sum);
+            }
+            for o in cells {
+                *o /= m;
+            }
+        }
+    }
+}
+
 /// Walks in flight at once in [`forked_walks`], stepped in turn so that their cache misses overlap.
 const LANES: usize = 8;
 /// Steps the walks of [`forked_walks`] take between two looks at where they stopped.
@@ -350,9 +523,9 @@ struct Fork {
     mask: u64,
 }
 
-/// For each slot `s < n_slots`, walks the tree `tree(s)` with the inputs `[x, a]`, where `x` is the
-/// state `data[offset(s)..offset(s) + d]`, for every action `a` of `acts` (1 to 64 of them) at
-/// once, and calls `leaf(s, mask, value)` for each leaf reached, `mask` holding the actions (bit j
+/// For each slot `s < n_slots`, with `(offset, start) = origin(s)`, walks the tree `tree(s)` from
+/// node `start` (the root, or a node every action reaches) with the inputs `[x, a]`, where `x` is
+/// the state `data[offset..offset + d]`, for every action `a` of `acts` (1 to 64 of them) at once, and calls `leaf(s, mask, value)` for each leaf reached, `mask` holding the actions (bit j
 /// for `acts[j]`) that reach it: every (slot, action) gets exactly one call. A walk forks only at
 /// the nodes that split on the action (feature `d`), and compares as [`Tree::step`] does. `data`
 /// must hold a value after the last slot's state: a walk at an action split reads `x[d]` (unused)
@@ -374,7 +547,7 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     data: &[f64],
     d: usize,
     tree: impl Fn(usize) -> &'a [Node],
-    offset: impl Fn(usize) -> usize,
+    origin: impl Fn(usize) -> (usize, u32),
     mut leaf: impl FnMut(usize, u64, f64),
 ) {
     if n_slots == 0 {
@@ -382,7 +555,7 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     }
     // The unchecked reads below rely on this (offsets grow with the slot) and on the tree
     // invariant that every child index of a node is in its tree.
-    assert!(d >= 1 && offset(n_slots - 1) + d < data.len(), "every slot's state, and one value more, is in `data`");
+    assert!(d >= 1 && origin(n_slots - 1).0 + d < data.len(), "every slot's state, and one value more, is in `data`");
     let full = u64::MAX >> (64 - acts.len());
     let mut small = [Fork::default(); LANES * 16];
     let mut big = Vec::new();
@@ -411,10 +584,15 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
                 top -= 1;
                 let f = stack[top];
                 let s = f.slot as usize;
-                (nodes[l], off[l], at[l], masks[l], slots[l]) = (tree(s), offset(s), f.node, f.mask, f.slot);
+                (nodes[l], off[l], at[l], masks[l], slots[l]) = (tree(s), origin(s).0, f.node, f.mask, f.slot);
                 true
             } else if next < n_slots {
-                (nodes[l], off[l], at[l], masks[l], slots[l]) = (tree(next), offset(next), 0, full, next as u32);
+                (nodes[l], off[l], at[l], masks[l], slots[l]) = {
+                    let (offset, start) = origin(next);
+                    // The unchecked reads below rely on every walk starting inside its tree.
+                    assert!((start as usize) < tree(next).len(), "a walk starts at a node of its tree");
+                    (tree(next), offset, start, full, next as u32)
+                };
                 next += 1;
                 true
             } else {
@@ -433,8 +611,8 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
             for l in 0..LANES {
                 let tree = if SAME_TREE { nodes[0] } else { nodes[l] };
                 debug_assert!((at[l] as usize) < tree.len());
-                // SAFETY: walks start at the root or at a child of a node, and step only to
-                // children, which every tree holds; the state index is within `data` (asserted
+                // SAFETY: walks start at a node of their tree (asserted in `take`) or at a child
+                // of a node, and step only to children, which every tree holds; the state index is within `data` (asserted
                 // above). Bounds checks here would double the instructions of the hottest loop.
                 let node = unsafe { *tree.get_unchecked(at[l] as usize) };
                 let go = node.feat < feat_d;
@@ -539,12 +717,14 @@ struct Data {
     /// `0..n` when the trees record each row's leaf (the row indices are partitioned with the
     /// columns), else empty.
     idx: Vec<u32>,
+    /// A leaf's fork is its first ancestor that splits on this column (`usize::MAX`: none).
+    fork_col: usize,
     /// Each column's (min, max): the root's ranges, the same for every tree, so taken once.
     ranges: Vec<(f32, f32)>,
 }
 
 impl Data {
-    fn new(rows: Rows<'_>, y: &[f64], track_rows: bool) -> Result<Self> {
+    fn new(rows: Rows<'_>, y: &[f64], record: Record) -> Result<Self> {
         let (n, d) = (rows.n_rows(), rows.n_cols());
         // Node indices are u32 and a tree has at most 2n − 1 nodes; feature indices leave the
         // top bit to LEAF.
@@ -563,11 +743,12 @@ impl Data {
                 x[f * n + i] = v as f32;
             }
         }
-        let idx = if track_rows { (0..n as u32).collect() } else { Vec::new() };
+        let idx = if matches!(record, Record::Nothing) { Vec::new() } else { (0..n as u32).collect() };
+        let fork_col = if let Record::Routes(c) = record { c } else { usize::MAX };
         // Exact extrema, so the portable kernel gives what the vector one would (up to the sign
         // of zero, which `canonical` settles).
         let ranges = x.chunks_exact(n).map(|col| canonical(portable::min_max(col))).collect();
-        Ok(Data { n, d, x, y: y.to_vec(), idx, ranges })
+        Ok(Data { n, d, x, y: y.to_vec(), idx, fork_col, ranges })
     }
 }
 
@@ -629,6 +810,8 @@ struct Pending {
     start: usize,
     end: usize,
     depth: usize,
+    /// The first ancestor that splits on [`Data::fork_col`], or [`NO_FORK`].
+    fork: u32,
 }
 
 /// A candidate split: feature and threshold (rows with `x <= thr` go left).
@@ -664,33 +847,33 @@ struct Split {
 /// Builds one tree, with AVX-512 kernels when the CPU has them. Both paths build the same tree: the
 /// kernels add in the same order (explicit lanes), and partitions and extrema are exact.
 ///
-/// When `data.idx` is set, `leaf_of[i]` gets the node index of the leaf training row `i` lands in.
-fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
+/// When `data.idx` is set, `routes` gets each training row's leaf and each leaf's value and fork.
+fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
     #[cfg(target_arch = "x86_64")]
     {
         if avx512::available() {
             // SAFETY: the features were just detected.
-            return unsafe { build_tree_avx512(p, data, ws, rng, leaf_of) };
+            return unsafe { build_tree_avx512(p, data, ws, rng, routes) };
         }
         if is_x86_feature_detected!("avx2") {
             // SAFETY: the feature was just detected.
-            return unsafe { build_tree_avx2(p, data, ws, rng, leaf_of) };
+            return unsafe { build_tree_avx2(p, data, ws, rng, routes) };
         }
     }
-    build_tree_impl::<false>(p, data, ws, rng, leaf_of)
+    build_tree_impl::<false>(p, data, ws, rng, routes)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,popcnt")]
-fn build_tree_avx512(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
-    build_tree_impl::<true>(p, data, ws, rng, leaf_of)
+fn build_tree_avx512(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
+    build_tree_impl::<true>(p, data, ws, rng, routes)
 }
 
 /// The portable kernels, compiled for AVX2 (the compiler vectorises the extrema).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, leaf_of: &mut [u32]) -> Tree {
-    build_tree_impl::<false>(p, data, ws, rng, leaf_of)
+fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
+    build_tree_impl::<false>(p, data, ws, rng, routes)
 }
 
 /// The builder (sklearn's depth-first builder with its random splitter). `WIDE` selects the AVX-512
@@ -701,7 +884,7 @@ fn build_tree_impl<const WIDE: bool>(
     data: &Data,
     ws: &mut Workspace,
     mut rng: Rng,
-    leaf_of: &mut [u32],
+    routes: &mut Routes,
 ) -> Tree {
     let (n_all, d) = (data.n, data.d);
     let track = !data.idx.is_empty();
@@ -713,11 +896,11 @@ fn build_tree_impl<const WIDE: bool>(
     ws.order.clear();
     ws.order.extend(0..d);
     ws.stack.clear();
-    ws.stack.push(Pending { slot: 0, start: 0, end: n_all, depth: 0 });
+    ws.stack.push(Pending { slot: 0, start: 0, end: n_all, depth: 0, fork: NO_FORK });
     ws.ranges.clear();
     ws.ranges.extend_from_slice(&data.ranges);
 
-    while let Some(Pending { slot, start, end, depth }) = ws.stack.pop() {
+    while let Some(Pending { slot, start, end, depth, fork }) = ws.stack.pop() {
         let n = end - start;
         // This node's ranges are the top `d` entries, read by the draws and then dropped.
         let r0 = ws.ranges.len() - d;
@@ -782,7 +965,9 @@ fn build_tree_impl<const WIDE: bool>(
         ws.ranges.truncate(r0);
         let Some(split) = best else {
             nodes[slot] = Node::leaf(slot, mean);
-            record_leaf(slot, if track { &src_i[start..end] } else { &[] }, leaf_of);
+            if track {
+                record_leaf(mean, fork, &src_i[start..end], routes);
+            }
             tree_depth = tree_depth.max(depth);
             continue;
         };
@@ -792,6 +977,7 @@ fn build_tree_impl<const WIDE: bool>(
         let (n_left, n_right) = (split.n_left, n - split.n_left);
         let forced_leaf = |m: usize| m < min_split || m < 2 * min_leaf || depth + 1 >= max_depth;
         let (leaf_left, leaf_right) = (forced_leaf(n_left), forced_leaf(n_right));
+        let fork = if fork == NO_FORK && split.feat == data.fork_col { slot as u32 } else { fork };
         let move_x = !(leaf_left && leaf_right);
 
         // Stable partition of every column (and y) into the other buffer.
@@ -840,11 +1026,14 @@ fn build_tree_impl<const WIDE: bool>(
             [(left + 1, leaf_right, mid..end, &ws.right_ranges), (left, leaf_left, start..mid, &ws.left_ranges)]
         {
             if leaf {
-                nodes[child] = Node::leaf(child, mean_var::<WIDE>(&dst_y[rows.clone()]).0);
-                record_leaf(child, if track { &dst_i[rows] } else { &[] }, leaf_of);
+                let mean = mean_var::<WIDE>(&dst_y[rows.clone()]).0;
+                nodes[child] = Node::leaf(child, mean);
+                if track {
+                    record_leaf(mean, fork, &dst_i[rows], routes);
+                }
                 tree_depth = tree_depth.max(depth + 1);
             } else {
-                ws.stack.push(Pending { slot: child, start: rows.start, end: rows.end, depth: depth + 1 });
+                ws.stack.push(Pending { slot: child, start: rows.start, end: rows.end, depth: depth + 1, fork });
                 ws.ranges.extend_from_slice(ranges);
             }
         }
@@ -852,11 +1041,14 @@ fn build_tree_impl<const WIDE: bool>(
     Tree { nodes, counts, depth: tree_depth }
 }
 
-/// `leaf_of[i] = slot` for the training rows `rows` of a leaf (nothing when rows are not tracked).
+/// Records a new leaf of value `value` below `fork` (see [`Routes`]) as the leaf of `rows`.
 #[inline(always)]
-fn record_leaf(slot: usize, rows: &[u32], leaf_of: &mut [u32]) {
+fn record_leaf(value: f64, fork: u32, rows: &[u32], routes: &mut Routes) {
+    let l = routes.value.len() as u32;
+    routes.value.push(value);
+    routes.fork.push(fork);
     for &i in rows {
-        leaf_of[i as usize] = slot as u32;
+        routes.leaf_of[i as usize] = l;
     }
 }
 
@@ -1342,6 +1534,7 @@ fn query_threshold(t: f32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::learn::{NO_ROW, NextStates};
 
     /// `n` rows of `d` uniform inputs in [-1, 1) from a fixed stream.
     fn random_x(n: usize, d: usize, seed: u64) -> Vec<f64> {
@@ -1503,6 +1696,10 @@ mod tests {
         assert_ne!(one, other);
     }
 
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
     #[test]
     fn vector_and_portable_kernels_build_the_same_trees() {
         #[cfg(target_arch = "x86_64")]
@@ -1513,15 +1710,18 @@ mod tests {
                 let mut x = random_x(n, 3, n as u64);
                 x.iter_mut().skip(2).step_by(3).for_each(|v| *v = (*v * 4.0).round());
                 let y: Vec<f64> = x.chunks(3).map(|r| offset + target(r) + r[2]).collect();
-                let data = Data::new(Rows::new(&x, 3).unwrap(), &y, true).unwrap();
+                // Forks at splits on the last column.
+                let data = Data::new(Rows::new(&x, 3).unwrap(), &y, Record::Routes(2)).unwrap();
                 for p in [params(1, None, 2, 1), params(1, Some(5), 4, 2)] {
                     let mut ws = Workspace::new(3, n);
-                    let (mut la, mut lb) = (vec![0; n], vec![0; n]);
+                    let routes = || Routes { leaf_of: vec![0; n], value: Vec::new(), fork: Vec::new() };
+                    let (mut la, mut lb) = (routes(), routes());
                     let a = build_tree_impl::<false>(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut la);
                     // SAFETY: the features were just detected.
                     let b = unsafe { build_tree_avx512(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut lb) };
                     assert_eq!(a.counts, b.counts, "n {n}");
-                    assert_eq!(la, lb, "n {n}");
+                    assert_eq!((&la.leaf_of, &la.fork), (&lb.leaf_of, &lb.fork), "n {n}");
+                    assert_eq!(bits(&la.value), bits(&lb.value), "n {n}");
                     for (u, v) in a.nodes.iter().zip(&b.nodes) {
                         assert_eq!((u.val.to_bits(), u.feat, u.left), (v.val.to_bits(), v.feat, v.left), "n {n}");
                     }
@@ -1666,6 +1866,79 @@ mod tests {
         // No states, no actions.
         assert!(predict_actions(&forests[0], &[], acts).is_empty());
         assert!(predict_actions(&forests[0], &states, &[]).is_empty());
+    }
+
+    #[test]
+    fn fit_predict_next_is_bit_identical_to_fitting_then_predicting() {
+        let (n, d) = (2500, 3);
+        let mut r = rng::stream(8, "test-next", &[]);
+        let xs = random_x(n, d, 70);
+        let acts: Vec<f64> = (0..n).map(|_| rng::below(&mut r, 9) as f64).collect();
+        let join = |a: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            (0..n).flat_map(|i| xs[i * d..(i + 1) * d].iter().copied().chain([a(i)])).collect()
+        };
+        let (with_action, constant_action) = (join(&|i| acts[i]), join(&|_| 1.0));
+        let noise = |i: usize| (i as f64 * 1.7).cos() * 0.1;
+        // The action splits here and there (weak), at the top (strong), or nowhere (constant).
+        let y_weak: Vec<f64> = (0..n).map(|i| target(&xs[i * d..]) + 0.01 * acts[i] + noise(i)).collect();
+        let y_strong: Vec<f64> = (0..n).map(|i| 10.0 * (acts[i] - 4.0).abs() + xs[i * d + 2] + noise(i)).collect();
+        // Next states: training states hinted with their row (in trajectory order, and one that
+        // hints another row with the same state), training states and fresh ones without a hint.
+        let fresh = random_x(300, d, 71);
+        let mut states = Vec::new();
+        let mut same = Vec::new();
+        for i in 0..n + 300 {
+            let (state, hint) = match i % 5 {
+                _ if i >= n => (&fresh[(i - n) * d..(i - n + 1) * d], NO_ROW),
+                4 => (&xs[i * d..(i + 1) * d], NO_ROW),
+                _ => (&xs[(i + 1) % n * d..((i + 1) % n + 1) * d], ((i + 1) % n) as u32),
+            };
+            states.extend_from_slice(state);
+            same.push(hint);
+        }
+        let states = Rows::new(&states, d).unwrap();
+        let many: Vec<f64> = (0..70).map(|j| j as f64 * 0.15 - 1.0).collect();
+        for (f, (p, x, y)) in [
+            (params(8, Some(12), 4, 2), &with_action, &y_weak),
+            (params(5, None, 2, 1), &with_action, &y_strong),
+            (params(6, Some(8), 8, 4), &constant_action, &y_weak),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            // Rows whose leaf has a fork and rows whose leaf has none, except where nothing splits
+            // on the action.
+            let x = Rows::new(x, d + 1).unwrap();
+            let (_, routes) = p.fit_impl(x, y, 3, Record::Routes(d)).unwrap();
+            let forked = |r: &Routes| r.leaf_of.iter().filter(|&&l| r.fork[l as usize] != NO_FORK).count();
+            let at_split: usize = routes.iter().map(forked).sum();
+            let at_leaf = n * p.n_trees - at_split;
+            assert_eq!(at_split == 0, f == 2, "forest {f}: {at_split} rows below a fork");
+            assert!(f == 1 || at_leaf > 0, "forest {f}: every row below a fork");
+            for actions in [(0..9).map(f64::from).collect(), many.clone(), vec![4.0]] {
+                let next = NextStates { states, actions: Some(&actions), same: &same };
+                let (mut train, mut q) = (vec![0.0; n], vec![0.0; (n + 300) * actions.len()]);
+                let (m, _) = p.fit_predict(x, y, 3, &mut train).unwrap();
+                m.predict_actions_into(states, &actions, &mut q);
+                let (mut train2, mut q2) = (vec![f64::NAN; n], vec![f64::NAN; q.len()]);
+                p.fit_predict_next(x, y, 3, &mut train2, &next, &mut q2).unwrap();
+                assert_eq!(bits(&train2), bits(&train), "forest {f}, in-sample");
+                assert_eq!(bits(&q2), bits(&q), "forest {f}, {} actions", actions.len());
+            }
+            // The state alone as input (one model per action): no forks.
+            let x = Rows::new(&xs, d).unwrap();
+            let next = NextStates { states, actions: None, same: &same };
+            let (mut train, mut q) = (vec![0.0; n], vec![0.0; n + 300]);
+            let (m, _) = p.fit_predict(x, y, 4, &mut train).unwrap();
+            m.predict_into(states, &mut q);
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let (mut train2, mut q2) = (vec![f64::NAN; n], vec![f64::NAN; q.len()]);
+                pool.install(|| p.fit_predict_next(x, y, 4, &mut train2, &next, &mut q2)).unwrap();
+                assert_eq!(bits(&train2), bits(&train), "forest {f}, state inputs, in-sample");
+                assert_eq!(bits(&q2), bits(&q), "forest {f}, state inputs, {threads} threads");
+            }
+        }
     }
 
     #[test]

@@ -10,6 +10,7 @@ pub mod mlp;
 
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
+use std::time::Instant;
 
 /// A borrowed row-major matrix: `data.len() == rows × cols`.
 #[derive(Debug, Clone, Copy)]
@@ -149,6 +150,53 @@ pub trait Learner: Send + Sync {
         let (m, info) = self.fit(x, y, seed)?;
         m.predict_into(x, out);
         Ok((m, info))
+    }
+
+    /// [`Learner::fit_predict`], also predicting the states of `next` into `out_next` as
+    /// [`NextStates::predict`] would; returns the seconds that prediction took, so that callers can
+    /// report fit and prediction apart. FQI asks this every iteration for Q(x′, ·), and in a
+    /// dataset of trajectories almost every next state is also a training state: a learner that
+    /// knows the training rows' routes (trees) overrides this to start from them.
+    fn fit_predict_next(
+        &self,
+        x: Rows<'_>,
+        y: &[f64],
+        seed: u64,
+        out: &mut [f64],
+        next: &NextStates<'_>,
+        out_next: &mut [f64],
+    ) -> Result<(Self::Model, FitInfo, f64)> {
+        let (m, info) = self.fit_predict(x, y, seed, out)?;
+        let t = Instant::now();
+        next.predict(&m, out_next);
+        Ok((m, info, t.elapsed().as_secs_f64()))
+    }
+}
+
+/// Marks a state of [`NextStates`] that is no training row's.
+pub const NO_ROW: u32 = u32::MAX;
+
+/// States to predict along with a fit (see [`Learner::fit_predict_next`]).
+#[derive(Debug, Clone, Copy)]
+pub struct NextStates<'a> {
+    /// One state per row.
+    pub states: Rows<'a>,
+    /// `Some(actions)`: the model's inputs are a state followed by an action (the `input` action
+    /// encoding), and every action is predicted for every state, as `predict_actions_into` does;
+    /// `None`: the inputs are the state alone, as in `predict_into`.
+    pub actions: Option<&'a [f64]>,
+    /// `same[i]`: a training row whose state (its inputs before the action, or all of them) equals
+    /// state `i` value for value, or [`NO_ROW`]. A hint: the predictions do not depend on it.
+    pub same: &'a [u32],
+}
+
+impl NextStates<'_> {
+    /// The model's predictions for these states, without the hint.
+    pub fn predict<M: Regressor + ?Sized>(&self, m: &M, out: &mut [f64]) {
+        match self.actions {
+            Some(actions) => m.predict_actions_into(self.states, actions, out),
+            None => m.predict_into(self.states, out),
+        }
     }
 }
 
