@@ -264,7 +264,10 @@ impl Regressor for ExtraTrees {
             return;
         }
         let d = states.n_cols();
-        self.state_blocks(states, k, out, |padded, _, block| self.predict_actions_block(padded, d, actions, block));
+        let rows_per_block = (ACTION_BLOCK / k).max(LANES);
+        self.state_blocks(states, k, rows_per_block, out, |padded, _, block| {
+            self.predict_actions_block(padded, d, actions, block)
+        });
     }
 }
 
@@ -373,14 +376,15 @@ impl ExtraTrees {
 }
 
 impl ExtraTrees {
-    /// Calls `work(states, first, out)` for blocks of [`ACTION_BLOCK`] outputs (`k` per state), in
-    /// parallel when there is enough work: `states` holds the block's states from state `first`
-    /// on, and one value more, which [`forked_walks`] may read (the states are copied once, with a
-    /// value after the last).
+    /// Calls `work(states, first, out)` for blocks of `rows_per_block` states and their outputs
+    /// (`k` per state), in parallel when there is enough work: `states` holds the block's states
+    /// from state `first` on, and one value more, which [`forked_walks`] may read (the states are
+    /// copied once, with a value after the last).
     fn state_blocks(
         &self,
         states: Rows<'_>,
         k: usize,
+        rows_per_block: usize,
         out: &mut [f64],
         work: impl Fn(&[f64], usize, &mut [f64]) + Sync,
     ) {
@@ -388,7 +392,6 @@ impl ExtraTrees {
         let mut padded = Vec::with_capacity(states.data().len() + 1);
         padded.extend_from_slice(states.data());
         padded.push(0.0);
-        let rows_per_block = (ACTION_BLOCK / k).max(LANES);
         let work = |(b, block): (usize, &mut [f64])| {
             let (start, end) = (b * rows_per_block, b * rows_per_block + block.len() / k);
             work(&padded[start * d..end * d + 1], start, block);
@@ -418,23 +421,56 @@ impl ExtraTrees {
     }
 
     /// [`NextStates::predict`], each state with a training twin taking the twin's leaf, or starting
-    /// its walk at the leaf's fork (see [`Routes`]), in each tree.
+    /// its walks at the leaf's fork (see [`Routes`]), in each tree; the others are predicted as
+    /// usual. Each state's outputs are its own sums over the trees, so splitting the states in two
+    /// changes nothing.
     fn predict_next_routed(&self, next: &NextStates<'_>, routes: &[Routes], out: &mut [f64]) {
-        // With the state alone as input, one placeholder action: no tree splits on column d.
-        let acts = next.actions.unwrap_or(&[0.0]);
-        let (d, k) = (next.states.n_cols(), acts.len());
-        if k == 0 || next.states.n_rows() == 0 {
+        let (states, d) = (next.states, next.states.n_cols());
+        let k = next.actions.map_or(1, <[f64]>::len);
+        if k == 0 {
             return;
         }
-        self.state_blocks(next.states, k, out, |states, first, block| {
+        let alone: Vec<usize> = (0..states.n_rows()).filter(|&i| next.same[i] == NO_ROW).collect();
+        if !alone.is_empty() {
+            let xs: Vec<f64> = alone.iter().flat_map(|&i| states.row(i)).copied().collect();
+            let mut q = vec![0.0; alone.len() * k];
+            let rows = Rows { data: &xs, cols: d };
+            NextStates { states: rows, actions: next.actions, same: &[] }.predict(self, &mut q);
+            for (&i, q) in alone.iter().zip(q.chunks_exact(k)) {
+                out[i * k..(i + 1) * k].copy_from_slice(q);
+            }
+        }
+        let m = self.trees.len() as f64;
+        let Some(acts) = next.actions else {
+            // The state alone as input: no forks, every twin's leaf is the state's.
+            out.par_chunks_mut(PREDICT_BLOCK).zip(next.same.par_chunks(PREDICT_BLOCK)).for_each(|(block, same)| {
+                let mut sums = vec![0.0; block.len()];
+                for route in routes {
+                    for (s, &r) in sums.iter_mut().zip(same).filter(|(_, r)| **r != NO_ROW) {
+                        *s += route.value[route.leaf_of[r as usize] as usize];
+                    }
+                }
+                for ((o, s), &r) in block.iter_mut().zip(sums).zip(same) {
+                    if r != NO_ROW {
+                        *o = s / m;
+                    }
+                }
+            });
+            return;
+        };
+        // Most states only read their twins' leaves, so blocks are kept small enough to share
+        // out (a tree's leaves stay in cache anyway).
+        let rows_per_block = (ACTION_BLOCK / k).clamp(LANES, PREDICT_BLOCK);
+        self.state_blocks(states, k, rows_per_block, out, |states, first, block| {
             let same = &next.same[first..first + block.len() / k];
-            self.predict_routed_block(states, d, acts, same, routes, block);
+            self.predict_twins_block(states, d, acts, same, routes, block);
         });
     }
 
-    /// [`ExtraTrees::predict_actions_block`] for states with training twins (`same`): a walk starts
-    /// at the fork of the twin's leaf, and needs no walking at all when there is none.
-    fn predict_routed_block(
+    /// [`ExtraTrees::predict_actions_block`] for the states with training twins (`same`, the
+    /// others are left alone): a walk starts at the fork of the twin's leaf, and there is none to
+    /// take when the leaf has no fork.
+    fn predict_twins_block(
         &self,
         states: &[f64],
         d: usize,
@@ -444,29 +480,22 @@ impl ExtraTrees {
         out: &mut [f64],
     ) {
         let k = acts.len();
-        // Until a state's first walk that reaches a split, every tree gives all its actions one
-        // leaf, so their sums are equal and one is kept (`shared`); the walk spreads it to the
-        // actions' cells (`spread`), which then add their own leaves. Each cell's sum is thus the
-        // same sequence of additions as in `predict_actions_block`.
+        // Until a state's first walk, every tree gives all its actions one leaf, so their sums are
+        // equal and one is kept (`shared`); the walk spreads it to the actions' cells (`spread`),
+        // which then add their own leaves. Each cell's sum is thus the same sequence of additions
+        // as in `predict_actions_block`.
         let mut shared = vec![0.0; same.len()];
         let mut spread = vec![false; same.len()];
-        // (state, node) of the walks still to take in the tree at hand.
+        // (state, fork) of the walks to take in the tree at hand.
         let mut walks: Vec<(u32, u32)> = Vec::with_capacity(same.len());
         for (tree, route) in self.trees.iter().zip(routes) {
             walks.clear();
-            for (i, &r) in same.iter().enumerate() {
-                // A state without a twin walks from the root.
-                // The twin's leaf, unless its path splits on the action (then the walk starts at
-                // that split); a state without a twin walks from the root.
-                let (leaf, at) = if r == NO_ROW {
-                    (0, 0)
-                } else {
-                    let leaf = route.leaf_of[r as usize] as usize;
-                    (leaf, route.fork[leaf])
-                };
-                if at == NO_FORK && !spread[i] {
+            for (i, &r) in same.iter().enumerate().filter(|(_, r)| **r != NO_ROW) {
+                let leaf = route.leaf_of[r as usize] as usize;
+                let fork = route.fork[leaf];
+                if fork == NO_FORK && !spread[i] {
                     shared[i] += route.value[leaf];
-                } else if at == NO_FORK {
+                } else if fork == NO_FORK {
                     for o in &mut out[i * k..(i + 1) * k] {
                         *o += route.value[leaf];
                     }
@@ -475,7 +504,7 @@ impl ExtraTrees {
                         out[i * k..(i + 1) * k].fill(shared[i]);
                         spread[i] = true;
                     }
-                    walks.push((i as u32, at));
+                    walks.push((i as u32, fork));
                 }
             }
             for (c, chunk) in acts.chunks(MASK_ACTIONS).enumerate() {
@@ -498,7 +527,8 @@ impl ExtraTrees {
             }
         }
         let m = self.trees.len() as f64;
-        for ((cells, &sum), &spread) in out.chunks_exact_mut(k).zip(&shared).zip(&spread) {
+        let twins = out.chunks_exact_mut(k).zip(&shared).zip(&spread).zip(same);
+        for (((cells, &sum), &spread), _) in twins.filter(|(_, r)| **r != NO_ROW) {
             if !spread {
                 cells.fill(sum);
             }
