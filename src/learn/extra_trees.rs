@@ -20,6 +20,9 @@
 //! [`Regressor::predict_actions_into`] (Q of every action, the action being the last input) walks
 //! each tree once per state and forks only at the splits on the action (see [`forked_walks`]),
 //! adding the trees in the same order as `predict_row`, so its answers are bit-identical.
+//! [`Learner::fit_predict_next`] (FQI's Q(x′, ·) with the fit) goes further: a next state that is
+//! also a training state takes that row's leaf, recorded during the build, and walks only from the
+//! splits on the action above it.
 
 use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason, check_training_data};
 use crate::error::{Error, Result, ensure};
