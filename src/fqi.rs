@@ -235,8 +235,8 @@ impl<'a, L: Learner> Fqi<'a, L> {
         let seed = rng::derive(self.fit_seed, "member", &[k as u64]);
         // The member's predictions on the training rows come with the fit (trees know each row's
         // leaf), so they count as fit time.
-        // Q(x′, ·) of the member comes with it too (trees start the walks of the next states
-        // where their training twins' routes end), timed apart as prediction.
+        // Q(x′, ·) of the member comes with it too (a tree gives a next state that is also a
+        // training state that row's leaf), timed apart as prediction.
         let (member, info, next_seconds) =
             self.enc.fit_predict_next(self.learner, &self.fit_target, seed, &mut self.p_train, &mut self.p_next)?;
         self.fits += 1;
