@@ -114,6 +114,13 @@ impl Encoded {
     }
 
     /// `out[i] = vals[k]` for the k-th training row of action j (`per_action` layout).
+    /// `out[i·|A| + j] = vals[i]`: action j's Q on every next state, into the i-major table.
+    fn put_action_column(&self, j: usize, vals: &[f64], out: &mut [f64]) {
+        for (i, &v) in vals.iter().enumerate() {
+            out[i * self.actions.len() + j] = v;
+        }
+    }
+
     fn put_action_rows(&self, j: usize, vals: &[f64], out: &mut [f64]) {
         let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
         for (&i, &v) in self.train_index[lo..hi].iter().zip(vals) {
@@ -173,9 +180,7 @@ impl Encoded {
                         &mut next_buf,
                     )?;
                     self.put_action_rows(j, &buf, out);
-                    for (i, &v) in next_buf.iter().enumerate() {
-                        out_next[i * na + j] = v;
-                    }
+                    self.put_action_column(j, &next_buf, out_next);
                     seconds += s;
                     info.epochs += fi.epochs;
                     // Any non-finite fit makes the member diverged; otherwise report the last reason.
@@ -208,7 +213,6 @@ impl Encoded {
 
     /// Predicts a member on every (next state, action) pair, `out[i·|A| + j] = Q(x'_i, a_j)`.
     pub fn predict_next<M: Regressor>(&self, q: &QModel<M>, out: &mut [f64]) {
-        let na = self.actions.len();
         match q {
             QModel::Input(m) => {
                 m.predict_actions_into(Rows::new(&self.next, self.obs_dim).expect("laid out"), &self.actions, out)
@@ -217,9 +221,7 @@ impl Encoded {
                 let mut buf = vec![0.0; self.n];
                 for (j, m) in ms.iter().enumerate() {
                     m.predict_into(Rows::new(&self.next, self.obs_dim).expect("laid out"), &mut buf);
-                    for (i, v) in buf.iter().enumerate() {
-                        out[i * na + j] = *v;
-                    }
+                    self.put_action_column(j, &buf, out);
                 }
             }
         }

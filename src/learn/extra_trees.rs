@@ -314,24 +314,7 @@ impl ExtraTrees {
         let n = out.len() / k;
         out.fill(0.0);
         for tree in &self.trees {
-            for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
-                let base = c * MASK_ACTIONS;
-                forked_walks::<true, false>(
-                    n,
-                    acts,
-                    states,
-                    d,
-                    |_| &tree.nodes,
-                    |r| (r * d, 0),
-                    |r, mut mask, v| {
-                        let acc = &mut out[r * k + base..];
-                        while mask != 0 {
-                            acc[mask.trailing_zeros() as usize] += v;
-                            mask &= mask - 1;
-                        }
-                    },
-                );
-            }
+            add_walks(tree, n, states, d, actions, |r| (r, 0), out);
         }
         let m = self.trees.len() as f64;
         for o in out.iter_mut() {
@@ -510,24 +493,7 @@ impl ExtraTrees {
                     walks.push((i as u32, fork));
                 }
             }
-            for (c, chunk) in acts.chunks(MASK_ACTIONS).enumerate() {
-                let base = c * MASK_ACTIONS;
-                forked_walks::<true, false>(
-                    walks.len(),
-                    chunk,
-                    states,
-                    d,
-                    |_| &tree.nodes,
-                    |w| (walks[w].0 as usize * d, walks[w].1),
-                    |w, mut mask, v| {
-                        let acc = &mut out[walks[w].0 as usize * k + base..];
-                        while mask != 0 {
-                            acc[mask.trailing_zeros() as usize] += v;
-                            mask &= mask - 1;
-                        }
-                    },
-                );
-            }
+            add_walks(tree, walks.len(), states, d, acts, |w| (walks[w].0 as usize, walks[w].1), out);
         }
         let m = self.trees.len() as f64;
         let twins = out.chunks_exact_mut(k).zip(&shared).zip(&spread).zip(same);
@@ -539,6 +505,42 @@ impl ExtraTrees {
                 *o /= m;
             }
         }
+    }
+}
+
+/// Adds tree `tree`'s leaves to `out` (`actions.len()` cells per state, in action order) for
+/// walks `0..n`: walk `w` is state `s` of `states` (`d` values each, and one more after the last)
+/// from node `start`, with `(s, start) = origin(w)`, for every action.
+fn add_walks(
+    tree: &Tree,
+    n: usize,
+    states: &[f64],
+    d: usize,
+    actions: &[f64],
+    origin: impl Fn(usize) -> (usize, u32),
+    out: &mut [f64],
+) {
+    let k = actions.len();
+    for (c, acts) in actions.chunks(MASK_ACTIONS).enumerate() {
+        let base = c * MASK_ACTIONS;
+        forked_walks::<true, false>(
+            n,
+            acts,
+            states,
+            d,
+            |_| &tree.nodes,
+            |w| {
+                let (s, start) = origin(w);
+                (s * d, start)
+            },
+            |w, mut mask, v| {
+                let acc = &mut out[origin(w).0 * k + base..];
+                while mask != 0 {
+                    acc[mask.trailing_zeros() as usize] += v;
+                    mask &= mask - 1;
+                }
+            },
+        );
     }
 }
 
