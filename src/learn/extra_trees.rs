@@ -146,16 +146,14 @@ impl ExtraTreesParams {
         let data = Data::new(x, y, record)?;
         let built: Vec<(Tree, Routes)> = (0..self.n_trees)
             .into_par_iter()
-            // One workspace per rayon split (a few per fit), not per tree: each costs page faults.
-            .map_init(
-                || Workspace::new(data.d, data.n),
-                |ws, t| {
-                    let m = if data.idx.is_empty() { 0 } else { data.n };
-                    let mut routes = Routes { leaf_of: vec![0; m], value: Vec::new(), fork: Vec::new() };
-                    let tree = build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut routes);
-                    (tree, routes)
-                },
-            )
+            .map(|t| {
+                let m = if data.idx.is_empty() { 0 } else { data.n };
+                let mut routes = Routes { leaf_of: vec![0; m], value: Vec::new(), fork: Vec::new() };
+                let tree = with_workspace(data.d, data.n, |ws| {
+                    build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut routes)
+                });
+                (tree, routes)
+            })
             .collect();
         let (trees, routes) = built.into_iter().unzip();
         Ok((ExtraTrees { n_inputs: data.d, trees }, routes))
@@ -815,7 +813,34 @@ struct Workspace {
     right_ranges: Vec<(f32, f32)>,
 }
 
+thread_local! {
+    /// The workspace of this thread's tree builds, kept from one fit to the next: FQI fits a forest
+    /// on the same rows every iteration, and allocating a workspace (tens of MB, zeroed) for every
+    /// rayon split of every fit cost a pendulum run ~3 % of its time in `memset`. It holds nothing
+    /// a tree reads before writing, so reusing it changes no tree.
+    static WORKSPACE: std::cell::RefCell<Option<Workspace>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Calls `f` with this thread's workspace, (re)made when it is too small for `d` columns × `n` rows.
+fn with_workspace<T>(d: usize, n: usize, f: impl FnOnce(&mut Workspace) -> T) -> T {
+    WORKSPACE.with_borrow_mut(|slot| {
+        if !slot.as_ref().is_some_and(|ws| ws.holds(d, n)) {
+            // Drop the old one first, so the two are never held at once.
+            *slot = None;
+            *slot = Some(Workspace::new(d, n));
+        }
+        f(slot.as_mut().expect("just made"))
+    })
+}
+
 impl Workspace {
+    /// Whether it serves trees on `d` columns × `n` rows: the builder indexes columns by the data's
+    /// own row count and slices the per-row buffers to the node, so more rows are fine; the
+    /// per-feature buffers (children's ranges) are used whole, so the columns must match.
+    fn holds(&self, d: usize, n: usize) -> bool {
+        self.left_ranges.len() == d && self.ay.len() >= n && self.ax.len() >= d * n
+    }
+
     fn new(d: usize, n: usize) -> Self {
         Workspace {
             ax: vec![0.0; d * n],
@@ -1635,6 +1660,47 @@ mod tests {
             prints.push(fingerprint(in_sample.into_iter().chain(q).chain(sizes)));
         }
         assert_eq!(prints, [0xbdcf_bb03_52ff_ea44, 0x8a98_1ce4_84af_8f0f, 0x1dc4_9790_a165_8727], "{prints:#x?}");
+    }
+
+    /// Pins, as above, forests where most rows have one target, so that pure nodes of thousands of
+    /// rows (leaves, which draw nothing) sit beside nodes that go on splitting: a builder that
+    /// drew for a node before knowing it is pure, without putting the stream back, would fail.
+    #[test]
+    fn big_pure_nodes_are_pinned_bit_for_bit() {
+        let n = 12_000;
+        let x = random_x(n, 3, 80);
+        let y: Vec<f64> = x.chunks(3).map(|r| if r[0] > 0.6 && r[1] > 0.2 { target(r) + r[2] } else { 0.25 }).collect();
+        let fresh = random_x(900, 3, 81);
+        let mut prints = Vec::new();
+        for (p, seed) in [(params(8, None, 2, 1), 4), (params(5, Some(12), 6, 3), 5)] {
+            let mut in_sample = vec![0.0; n];
+            let (m, _) = p.fit_predict(Rows::new(&x, 3).unwrap(), &y, seed, &mut in_sample).unwrap();
+            let sizes = (0..m.n_trees()).map(|t| (m.n_nodes(t) * 64 + m.tree_depth(t)) as f64);
+            let feats = (0..m.n_trees()).flat_map(|t| m.split_features(t)).map(|f| f as f64);
+            prints.push(fingerprint(in_sample.into_iter().chain(predict(&m, &fresh)).chain(sizes).chain(feats)));
+        }
+        assert_eq!(prints, [0x137b_ed4c_a527_1ebb, 0xd144_3b0f_4a64_6e0f], "{prints:#x?}");
+    }
+
+    /// A worker thread keeps its workspace from one fit to the next: fits of other widths and row
+    /// counts on the same thread in between must not reach a forest.
+    #[test]
+    fn kept_workspaces_change_no_forest() {
+        let (x2, y2) = synthetic(3000, 90);
+        let x5 = random_x(5000, 5, 91);
+        let y5: Vec<f64> = x5.chunks(5).map(|r| target(r) + r[4]).collect();
+        let (x_small, y_small) = synthetic(700, 92);
+        let p = params(4, Some(12), 2, 1);
+        let one_thread = || rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let forest = |x: &[f64], y: &[f64]| bits(&predict(&fit(&p, x, y, 7), x));
+        // Each new pool has a new thread, so its first fit makes a new workspace.
+        let alone = |x: &[f64], y: &[f64]| one_thread().install(|| forest(x, y));
+        let in_turn =
+            one_thread().install(|| [forest(&x2, &y2), forest(&x5, &y5), forest(&x_small, &y_small), forest(&x2, &y2)]);
+        assert_eq!(in_turn[0], alone(&x2, &y2));
+        assert_eq!(in_turn[1], alone(&x5, &y5));
+        assert_eq!(in_turn[2], alone(&x_small, &y_small));
+        assert_eq!(in_turn[3], in_turn[0]);
     }
 
     #[test]
