@@ -51,14 +51,16 @@ fn data(env: &str, episodes: usize) -> Result<(EnvConfig, Dataset)> {
 }
 
 fn run_python(reference: &PythonReference, script: &str, args: &[String]) -> Option<Value> {
-    let python = reference.python.as_ref()?;
-    let path = reference.scripts.join(script);
-    let out = Command::new(python).arg(&path).args(args).output().ok()?;
+    run_python_at(reference.python.as_ref()?, &reference.scripts.join(script), args)
+}
+
+/// Runs `python script args…` and parses the last line it prints as JSON; a failure is reported on
+/// stderr and gives `None` (the figures without a reference are still worth printing).
+fn run_python_at(python: &Path, script: &Path, args: &[String]) -> Option<Value> {
+    let name = script.file_name().map_or_else(|| script.display().to_string(), |n| n.to_string_lossy().into());
+    let out = Command::new(python).arg(script).args(args).output().ok()?;
     if !out.status.success() {
-        eprintln!(
-            "  (reference {script} failed: {})",
-            String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("")
-        );
+        eprintln!("  (reference {name} failed: {})", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or(""));
         return None;
     }
     let text = String::from_utf8_lossy(&out.stdout);
@@ -246,23 +248,42 @@ pub fn learners(reference: &PythonReference, json: bool) -> Result<Value> {
     }))
 }
 
+/// The scikit-learn FQI / B-FQI script `bench fqi --python` runs side by side (ours, so it is built
+/// into the binary and needs no checkout).
+const SKLEARN_FQI: &str = include_str!("../scripts/sklearn_fqi.py");
+
 /// A full-run figure of `bench fqi`.
 #[derive(Debug, Serialize)]
 struct FqiFigures {
     run: String,
     seconds: f64,
+    /// Fit + predict seconds summed over the iterations (the whole run less datasets and evaluation).
+    fit_predict_s: f64,
     iterations: usize,
     final_score: Option<f64>,
-    last_over_second_iteration: f64,
+    /// Steps the final evaluation ran, over all its episodes (what the reference is asked to predict).
+    eval_steps: usize,
+    /// B-FQI only: fit + predict seconds of iteration K over iteration 2 (the running sums keep it
+    /// near 1); FQI refits from scratch each iteration, so there it would measure nothing.
+    last_over_second_iteration: Option<f64>,
     /// Fit + predict seconds of iteration K: B-FQI's against FQI's on the same data shows what the
     /// member count costs (the running sums make it nothing), apart from the targets' effect.
     last_iteration_fit_predict_s: f64,
     python_reference_s: f64,
     speedup: f64,
+    /// scikit-learn on the same dataset, in the same window (`--python`): its JSON line.
+    measured_reference: Option<Value>,
+    /// Its whole run (evaluation of `eval_steps` steps included) over ours.
+    measured_speedup: Option<f64>,
+    /// Its fit + predict seconds over ours (no evaluation on either side).
+    measured_fit_predict_speedup: Option<f64>,
 }
 
-/// Benchmarks whole FQI / B-FQI runs with Extra-Trees; prints a table, or JSON with `json`.
-pub fn fqi(json: bool) -> Result<Value> {
+/// Benchmarks whole FQI / B-FQI runs with Extra-Trees; prints a table, or JSON with `json`. With a
+/// Python that has scikit-learn, each run is followed by the same run in scikit-learn
+/// (`scripts/sklearn_fqi.py`) on the same dataset, so the ratio is taken in one window of a shared,
+/// noisy machine instead of against a figure from another day.
+pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
     // (env, algorithm, depth, trees, split, leaf, K, episodes, encoding, scikit-learn reference seconds
     // measured on this machine class with n_jobs = 2, as given in the learners/FQI issues).
     let runs = [
@@ -271,6 +292,12 @@ pub fn fqi(json: bool) -> Result<Value> {
         ("cartpole", Algorithm::Bfqi, 6, 30, 4, 2, 10, 2000, ActionEncoding::PerAction, 2.4),
         ("pendulum", Algorithm::Fqi, 13, 30, 4, 2, 20, 2000, ActionEncoding::Input, 133.0),
     ];
+    let tmp = std::env::temp_dir().join(format!("bfqi-bench-fqi-{}", std::process::id()));
+    let script = tmp.join("sklearn_fqi.py");
+    if python.is_some() {
+        std::fs::create_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        std::fs::write(&script, SKLEARN_FQI).map_err(|e| Error::io(&script, e))?;
+    }
     let mut figures = Vec::new();
     if !json {
         println!(
@@ -298,31 +325,83 @@ pub fn fqi(json: bool) -> Result<Value> {
             let r = &rec.iterations[i];
             r.fit_seconds + r.predict_seconds
         };
-        let ratio = if rec.iterations.len() >= 2 { it(rec.iterations.len() - 1) / it(1) } else { f64::NAN };
+        let ratio =
+            (algorithm == Algorithm::Bfqi && rec.iterations.len() >= 2).then(|| it(rec.iterations.len() - 1) / it(1));
+        let fit_predict_s = (0..rec.iterations.len()).map(it).sum::<f64>();
+        let eval_steps =
+            rec.iterations.last().and_then(|r| r.steps).map_or(0, |s| (s * e.eval().episodes as f64).round() as usize);
+        let measured_reference = match python {
+            Some(py) => {
+                let csv = tmp.join(format!("{env}.csv"));
+                d.write_csv(&csv)?;
+                let actions: Vec<String> = e.actions().iter().map(|a| a.to_string()).collect();
+                let args = [
+                    csv.display().to_string(),
+                    format!("--algo={}", algorithm.name()),
+                    format!("--actions={}", actions.join(",")),
+                    format!("--encoding={}", if encoding == ActionEncoding::Input { "input" } else { "per_action" }),
+                    format!("--gamma={}", e.gamma()),
+                    format!("--trees={trees}"),
+                    format!("--depth={depth}"),
+                    format!("--min-split={split}"),
+                    format!("--min-leaf={leaf}"),
+                    format!("--iterations={k}"),
+                    format!("--eval-steps={eval_steps}"),
+                    format!("--jobs={}", rayon::current_num_threads()),
+                ];
+                run_python_at(py, &script, &args)
+            }
+            None => None,
+        };
+        let measured = |v: &Value| v["seconds"].as_f64().map(|s| s / seconds);
+        let measured_fp = |v: &Value| Some((v["fit_s"].as_f64()? + v["predict_s"].as_f64()?) / fit_predict_s);
         let f = FqiFigures {
             run: format!("{env} {} depth {depth} K={k} ({episodes} episodes)", algorithm.name()),
             seconds,
+            fit_predict_s,
             iterations: rec.iterations.len(),
             final_score: rec.final_score(),
+            eval_steps,
             last_over_second_iteration: ratio,
             last_iteration_fit_predict_s: rec.iterations.last().map_or(f64::NAN, |r| r.fit_seconds + r.predict_seconds),
             python_reference_s: reference,
             speedup: reference / seconds,
+            measured_speedup: measured_reference.as_ref().and_then(measured),
+            measured_fit_predict_speedup: measured_reference.as_ref().and_then(measured_fp),
+            measured_reference,
         };
         if !json {
             println!(
-                "  {:<42} {:>8.2} s  (scikit-learn reference {:>5.1} s: {:>5.1}×)  fit+predict iteration K: {:.3} s, / iteration 2: {:.2}  final score {}",
+                "  {:<42} {:>8.2} s  (scikit-learn reference {:>5.1} s: {:>5.1}×)  fit+predict iteration K: {:.3} s{}  final score {}",
                 f.run,
                 f.seconds,
                 f.python_reference_s,
                 f.speedup,
                 f.last_iteration_fit_predict_s,
-                f.last_over_second_iteration,
+                f.last_over_second_iteration.map_or(String::new(), |r| format!(", / iteration 2: {r:.2}")),
                 f.final_score.map_or("—".into(), |s| format!("{s:.3}"))
             );
+            if let (Some(r), Some(whole), Some(fp)) =
+                (&f.measured_reference, f.measured_speedup, f.measured_fit_predict_speedup)
+            {
+                println!(
+                    "  {:<42} {:>8.2} s  scikit-learn in this window: {whole:.1}× whole run (evaluation of {} steps: {:.1} s vs ours {:.2} s); fit+predict {fp:.1}× ({:.1} s vs {:.2} s)",
+                    "",
+                    r["seconds"].as_f64().unwrap_or(f64::NAN),
+                    f.eval_steps,
+                    r["eval_s"].as_f64().unwrap_or(f64::NAN),
+                    rec.iterations.iter().map(|r| r.eval_seconds).sum::<f64>(),
+                    r["fit_s"].as_f64().unwrap_or(f64::NAN) + r["predict_s"].as_f64().unwrap_or(f64::NAN),
+                    f.fit_predict_s,
+                );
+            }
         }
         figures.push(f);
     }
+    if !json && python.is_none() {
+        println!("  (no --python given: pass one with scikit-learn to run the same runs in scikit-learn side by side)");
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
     Ok(json!({ "threads": rayon::current_num_threads(), "runs": figures }))
 }
 

@@ -342,7 +342,8 @@ pub struct BenchArgs {
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// A Python with scikit-learn (and keras + jax) to run the reference scripts side by side.
+    /// A Python with scikit-learn (and keras + jax) to run the reference scripts side by side
+    /// (`fqi`: scikit-learn only, with the FQI script built into the binary).
     #[arg(long)]
     pub python: Option<PathBuf>,
     /// Folder of the reference scripts (sklearn_et.py, keras_mlp.py).
@@ -535,7 +536,7 @@ fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
             crate::bench::learners(&reference, a.json)?
         }
         "search" => crate::bench::search(a.json)?,
-        _ => crate::bench::fqi(a.json)?,
+        _ => crate::bench::fqi(a.python.as_deref(), a.json)?,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&figures)?);
