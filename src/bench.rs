@@ -252,6 +252,11 @@ pub fn learners(reference: &PythonReference, json: bool) -> Result<Value> {
 /// into the binary and needs no checkout).
 const SKLEARN_FQI: &str = include_str!("../scripts/sklearn_fqi.py");
 
+/// The fit + predict seconds of a `sklearn_fqi.py` JSON line.
+fn reference_fit_predict_s(v: &Value) -> Option<f64> {
+    Some(v["fit_s"].as_f64()? + v["predict_s"].as_f64()?)
+}
+
 /// A full-run figure of `bench fqi`.
 #[derive(Debug, Serialize)]
 struct FqiFigures {
@@ -339,7 +344,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
                     csv.display().to_string(),
                     format!("--algo={}", algorithm.name()),
                     format!("--actions={}", actions.join(",")),
-                    format!("--encoding={}", if encoding == ActionEncoding::Input { "input" } else { "per_action" }),
+                    format!("--encoding={}", json!(encoding).as_str().unwrap_or_default()),
                     format!("--gamma={}", e.gamma()),
                     format!("--trees={trees}"),
                     format!("--depth={depth}"),
@@ -354,7 +359,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
             None => None,
         };
         let measured = |v: &Value| v["seconds"].as_f64().map(|s| s / seconds);
-        let measured_fp = |v: &Value| Some((v["fit_s"].as_f64()? + v["predict_s"].as_f64()?) / fit_predict_s);
+        let measured_fp = |v: &Value| reference_fit_predict_s(v).map(|s| s / fit_predict_s);
         let f = FqiFigures {
             run: format!("{env} {} depth {depth} K={k} ({episodes} episodes)", algorithm.name()),
             seconds,
@@ -363,7 +368,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
             final_score: rec.final_score(),
             eval_steps,
             last_over_second_iteration: ratio,
-            last_iteration_fit_predict_s: rec.iterations.last().map_or(f64::NAN, |r| r.fit_seconds + r.predict_seconds),
+            last_iteration_fit_predict_s: rec.iterations.len().checked_sub(1).map_or(f64::NAN, it),
             python_reference_s: reference,
             speedup: reference / seconds,
             measured_speedup: measured_reference.as_ref().and_then(measured),
@@ -391,7 +396,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
                     f.eval_steps,
                     r["eval_s"].as_f64().unwrap_or(f64::NAN),
                     rec.iterations.iter().map(|r| r.eval_seconds).sum::<f64>(),
-                    r["fit_s"].as_f64().unwrap_or(f64::NAN) + r["predict_s"].as_f64().unwrap_or(f64::NAN),
+                    reference_fit_predict_s(r).unwrap_or(f64::NAN),
                     f.fit_predict_s,
                 );
             }
