@@ -5,10 +5,11 @@
 //! same data in the same run for side-by-side ratios. `bench fqi` times whole FQI / B-FQI runs.
 
 use crate::dataset::{self, Dataset, dataset_seed};
+use crate::env::Env;
 use crate::env::EnvConfig;
 use crate::error::{Error, Result};
 use crate::eval::eval_seed;
-use crate::fqi::{Algorithm, Fqi, FqiSettings};
+use crate::fqi::{Algorithm, Fqi, FqiSettings, RunRecord};
 use crate::learn::actions::{ActionEncoding, Encoded};
 use crate::learn::extra_trees::ExtraTreesParams;
 use crate::learn::mlp::{Activation, MlpParams};
@@ -271,6 +272,9 @@ struct FqiFigures {
     /// B-FQI only: fit + predict seconds of iteration K over iteration 2 (the running sums keep it
     /// near 1); FQI refits from scratch each iteration, so there it would measure nothing.
     last_over_second_iteration: Option<f64>,
+    /// The same from the medians of three iterations (K − 2..=K over 2..=4; K ≥ 6): one iteration
+    /// takes tenths of a second, and on a shared machine one of them can read 40 % off.
+    last_over_second_iteration_median3: Option<f64>,
     /// Fit + predict seconds of iteration K: B-FQI's against FQI's on the same data shows what the
     /// member count costs (the running sums make it nothing), apart from the targets' effect.
     last_iteration_fit_predict_s: f64,
@@ -278,10 +282,36 @@ struct FqiFigures {
     speedup: f64,
     /// scikit-learn on the same dataset, in the same window (`--python`): its JSON line.
     measured_reference: Option<Value>,
-    /// Its whole run (evaluation of `eval_steps` steps included) over ours.
+    /// With `--python`: our run again, right after scikit-learn's (whole run, fit + predict), so
+    /// that its window is bracketed by ours.
+    seconds_after_reference: Option<f64>,
+    fit_predict_s_after_reference: Option<f64>,
+    /// The second of our runs over the first (whole run): how much the machine drifted around the
+    /// reference's run; outside [`STEADY`], the measured ratios are flagged as uncertain.
+    drift: Option<f64>,
+    /// Its whole run (evaluation of `eval_steps` steps included) over ours (the mean of our two).
     measured_speedup: Option<f64>,
-    /// Its fit + predict seconds over ours (no evaluation on either side).
+    /// Its fit + predict seconds over ours (no evaluation on either side; the mean of our two).
     measured_fit_predict_speedup: Option<f64>,
+}
+
+/// The [`FqiFigures::drift`] within which a window counts as steady: our two identical runs around
+/// scikit-learn's took within 20 % of each other.
+const STEADY: std::ops::RangeInclusive<f64> = 0.8..=1.25;
+
+/// One of our `bench fqi` runs: its record, whole-run seconds, and fit + predict seconds.
+fn timed_run(
+    env: &dyn Env,
+    d: &Dataset,
+    enc: &Encoded,
+    p: &ExtraTreesParams,
+    settings: FqiSettings,
+) -> Result<(RunRecord, f64, f64)> {
+    let t = Instant::now();
+    let rec = Fqi::new(env, d, enc, p, settings, rng::derive(1, "fit", &[0]), eval_seed(1, 0)).run(|_| {})?;
+    let seconds = t.elapsed().as_secs_f64();
+    let fit_predict_s = rec.iterations.iter().map(|r| r.fit_seconds + r.predict_seconds).sum();
+    Ok((rec, seconds, fit_predict_s))
 }
 
 /// Benchmarks whole FQI / B-FQI runs with Extra-Trees; prints a table, or JSON with `json`. With a
@@ -313,6 +343,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
     for (env, algorithm, depth, trees, split, leaf, k, episodes, encoding, reference) in runs {
         let t = Instant::now();
         let (c, d) = data(env, episodes)?;
+        let data_s = t.elapsed().as_secs_f64();
         let e = c.env();
         let enc = Encoded::new(&d, e.actions(), encoding)?;
         let p = ExtraTreesParams {
@@ -324,15 +355,17 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
         // The reference's time includes one greedy evaluation (its ~40 s on bicycle are one 5000-step
         // episode through per-step predicts), so the policy is evaluated once, after iteration K.
         let settings = FqiSettings { algorithm, iterations: k, eval_every: k };
-        let rec = Fqi::new(e, &d, &enc, &p, settings, rng::derive(1, "fit", &[0]), eval_seed(1, 0)).run(|_| {})?;
-        let seconds = t.elapsed().as_secs_f64();
+        let (rec, run_s, fit_predict_s) = timed_run(e, &d, &enc, &p, settings)?;
+        // Like the reference's, our whole run includes making the dataset.
+        let seconds = data_s + run_s;
         let it = |i: usize| {
             let r = &rec.iterations[i];
             r.fit_seconds + r.predict_seconds
         };
-        let ratio =
-            (algorithm == Algorithm::Bfqi && rec.iterations.len() >= 2).then(|| it(rec.iterations.len() - 1) / it(1));
-        let fit_predict_s = (0..rec.iterations.len()).map(it).sum::<f64>();
+        let n_it = rec.iterations.len();
+        let ratio = (algorithm == Algorithm::Bfqi && n_it >= 2).then(|| it(n_it - 1) / it(1));
+        let median3 = |from: usize| median((from..from + 3).map(it).collect());
+        let ratio3 = (algorithm == Algorithm::Bfqi && n_it >= 6).then(|| median3(n_it - 3) / median3(1));
         let eval_steps =
             rec.iterations.last().and_then(|r| r.steps).map_or(0, |s| (s * e.eval().episodes as f64).round() as usize);
         let measured_reference = match python {
@@ -358,8 +391,17 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
             }
             None => None,
         };
-        let measured = |v: &Value| v["seconds"].as_f64().map(|s| s / seconds);
-        let measured_fp = |v: &Value| reference_fit_predict_s(v).map(|s| s / fit_predict_s);
+        // Our run again after scikit-learn's (the same record but for the timings), so that a drift
+        // of the machine during its run shows.
+        let after = match &measured_reference {
+            Some(_) => Some(timed_run(e, &d, &enc, &p, settings)?),
+            None => None,
+        };
+        let after = after.map(|(_, run_s, fp)| (data_s + run_s, fp));
+        let (ours, ours_fp) =
+            after.map_or((seconds, fit_predict_s), |(s, fp)| ((seconds + s) / 2.0, (fit_predict_s + fp) / 2.0));
+        let measured = |v: &Value| v["seconds"].as_f64().map(|s| s / ours);
+        let measured_fp = |v: &Value| reference_fit_predict_s(v).map(|s| s / ours_fp);
         let f = FqiFigures {
             run: format!("{env} {} depth {depth} K={k} ({episodes} episodes)", algorithm.name()),
             seconds,
@@ -368,9 +410,13 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
             final_score: rec.final_score(),
             eval_steps,
             last_over_second_iteration: ratio,
+            last_over_second_iteration_median3: ratio3,
             last_iteration_fit_predict_s: rec.iterations.len().checked_sub(1).map_or(f64::NAN, it),
             python_reference_s: reference,
             speedup: reference / seconds,
+            seconds_after_reference: after.map(|a| a.0),
+            fit_predict_s_after_reference: after.map(|a| a.1),
+            drift: after.map(|a| a.0 / seconds),
             measured_speedup: measured_reference.as_ref().and_then(measured),
             measured_fit_predict_speedup: measured_reference.as_ref().and_then(measured_fp),
             measured_reference,
@@ -383,11 +429,15 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
                 f.python_reference_s,
                 f.speedup,
                 f.last_iteration_fit_predict_s,
-                f.last_over_second_iteration.map_or(String::new(), |r| format!(", / iteration 2: {r:.2}")),
+                match (f.last_over_second_iteration, f.last_over_second_iteration_median3) {
+                    (Some(r), Some(r3)) => format!(", / iteration 2: {r:.2} (medians of 3: {r3:.2})"),
+                    (Some(r), None) => format!(", / iteration 2: {r:.2}"),
+                    _ => String::new(),
+                },
                 f.final_score.map_or("—".into(), |s| format!("{s:.3}"))
             );
-            if let (Some(r), Some(whole), Some(fp)) =
-                (&f.measured_reference, f.measured_speedup, f.measured_fit_predict_speedup)
+            if let (Some(r), Some(whole), Some(fp), Some(drift)) =
+                (&f.measured_reference, f.measured_speedup, f.measured_fit_predict_speedup, f.drift)
             {
                 println!(
                     "  {:<42} {:>8.2} s  scikit-learn in this window: {whole:.1}× whole run (evaluation of {} steps: {:.1} s vs ours {:.2} s); fit+predict {fp:.1}× ({:.1} s vs {:.2} s)",
@@ -397,7 +447,14 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
                     r["eval_s"].as_f64().unwrap_or(f64::NAN),
                     rec.iterations.iter().map(|r| r.eval_seconds).sum::<f64>(),
                     reference_fit_predict_s(r).unwrap_or(f64::NAN),
-                    f.fit_predict_s,
+                    ours_fp,
+                );
+                println!(
+                    "  {:<42}   ours {:.2} s before and {:.2} s after it (×{drift:.2}; the ratios use the mean){}",
+                    "",
+                    f.seconds,
+                    f.seconds_after_reference.unwrap_or(f64::NAN),
+                    if STEADY.contains(&drift) { "" } else { ": the machine drifted, so these ratios are uncertain" }
                 );
             }
         }
