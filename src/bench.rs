@@ -5,8 +5,7 @@
 //! same data in the same run for side-by-side ratios. `bench fqi` times whole FQI / B-FQI runs.
 
 use crate::dataset::{self, Dataset, dataset_seed};
-use crate::env::Env;
-use crate::env::EnvConfig;
+use crate::env::{Env, EnvConfig};
 use crate::error::{Error, Result};
 use crate::eval::eval_seed;
 use crate::fqi::{Algorithm, Fqi, FqiSettings, RunRecord};
@@ -296,7 +295,7 @@ struct FqiFigures {
 }
 
 /// The [`FqiFigures::drift`] within which a window counts as steady: our two identical runs around
-/// scikit-learn's took within 20 % of each other.
+/// scikit-learn's were less than 1.25× apart.
 const STEADY: std::ops::RangeInclusive<f64> = 0.8..=1.25;
 
 /// One of our `bench fqi` runs: its record, whole-run seconds, and fit + predict seconds.
