@@ -8,7 +8,7 @@ use crate::dataset::{self, Dataset, dataset_seed};
 use crate::env::{Env, EnvConfig};
 use crate::error::{Error, Result};
 use crate::eval::eval_seed;
-use crate::fqi::{Algorithm, Fqi, FqiSettings, RunRecord};
+use crate::fqi::{Algorithm, Fqi, FqiSettings, IterationRecord, RunRecord};
 use crate::learn::actions::{ActionEncoding, Encoded};
 use crate::learn::extra_trees::ExtraTreesParams;
 use crate::learn::mlp::{Activation, MlpParams};
@@ -298,6 +298,11 @@ struct FqiFigures {
 /// scikit-learn's were less than 1.25× apart.
 const STEADY: std::ops::RangeInclusive<f64> = 0.8..=1.25;
 
+/// An iteration's fit + predict seconds.
+fn fit_predict_s(r: &IterationRecord) -> f64 {
+    r.fit_seconds + r.predict_seconds
+}
+
 /// One of our `bench fqi` runs: its record, whole-run seconds, and fit + predict seconds.
 fn timed_run(
     env: &dyn Env,
@@ -309,8 +314,8 @@ fn timed_run(
     let t = Instant::now();
     let rec = Fqi::new(env, d, enc, p, settings, rng::derive(1, "fit", &[0]), eval_seed(1, 0)).run(|_| {})?;
     let seconds = t.elapsed().as_secs_f64();
-    let fit_predict_s = rec.iterations.iter().map(|r| r.fit_seconds + r.predict_seconds).sum();
-    Ok((rec, seconds, fit_predict_s))
+    let total = rec.iterations.iter().map(fit_predict_s).sum();
+    Ok((rec, seconds, total))
 }
 
 /// Benchmarks whole FQI / B-FQI runs with Extra-Trees; prints a table, or JSON with `json`. With a
@@ -354,13 +359,10 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
         // The reference's time includes one greedy evaluation (its ~40 s on bicycle are one 5000-step
         // episode through per-step predicts), so the policy is evaluated once, after iteration K.
         let settings = FqiSettings { algorithm, iterations: k, eval_every: k };
-        let (rec, run_s, fit_predict_s) = timed_run(e, &d, &enc, &p, settings)?;
+        let (rec, run_s, run_fp) = timed_run(e, &d, &enc, &p, settings)?;
         // Like the reference's, our whole run includes making the dataset.
         let seconds = data_s + run_s;
-        let it = |i: usize| {
-            let r = &rec.iterations[i];
-            r.fit_seconds + r.predict_seconds
-        };
+        let it = |i: usize| fit_predict_s(&rec.iterations[i]);
         let n_it = rec.iterations.len();
         let ratio = (algorithm == Algorithm::Bfqi && n_it >= 2).then(|| it(n_it - 1) / it(1));
         let median3 = |from: usize| median((from..from + 3).map(it).collect());
@@ -392,19 +394,18 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
         };
         // Our run again after scikit-learn's (the same record but for the timings), so that a drift
         // of the machine during its run shows.
-        let after = match &measured_reference {
-            Some(_) => Some(timed_run(e, &d, &enc, &p, settings)?),
-            None => None,
-        };
-        let after = after.map(|(_, run_s, fp)| (data_s + run_s, fp));
-        let (ours, ours_fp) =
-            after.map_or((seconds, fit_predict_s), |(s, fp)| ((seconds + s) / 2.0, (fit_predict_s + fp) / 2.0));
+        let after = measured_reference
+            .is_some()
+            .then(|| timed_run(e, &d, &enc, &p, settings))
+            .transpose()?
+            .map(|(_, run_s, fp)| (data_s + run_s, fp));
+        let (ours, ours_fp) = after.map_or((seconds, run_fp), |(s, fp)| ((seconds + s) / 2.0, (run_fp + fp) / 2.0));
         let measured = |v: &Value| v["seconds"].as_f64().map(|s| s / ours);
         let measured_fp = |v: &Value| reference_fit_predict_s(v).map(|s| s / ours_fp);
         let f = FqiFigures {
             run: format!("{env} {} depth {depth} K={k} ({episodes} episodes)", algorithm.name()),
             seconds,
-            fit_predict_s,
+            fit_predict_s: run_fp,
             iterations: rec.iterations.len(),
             final_score: rec.final_score(),
             eval_steps,
