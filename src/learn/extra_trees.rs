@@ -568,7 +568,8 @@ struct Fork {
 /// leaf or an action split; between rounds, a walk at an action split goes on with the actions
 /// that go left (or right if none do) and a fork with the others is stacked, and a walk at a leaf
 /// is reported and its lane given the next walk at once, from the stack first (waiting for every
-/// lane to reach a leaf left most steps idle: leaves lie at very different depths). So a slot
+/// lane to reach a leaf left most steps idle: leaves lie at very different depths). A slot that
+/// starts at an action split (a fork) takes it when its lane is given it. So a slot
 /// starts only when the stack is empty, at most [`LANES`] slots have walks left, and the walks of a
 /// slot carry disjoint non-empty sets of actions: the stack never holds more than
 /// `LANES × acts.len()`. Each (slot, action) gets one leaf, which the callers put in a cell of its
@@ -609,6 +610,27 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     let mut nodes: [&[Node]; LANES] = [tree(0); LANES];
     let mut next = 0;
     let mut live = 0u32;
+    // Lane l at `node`, a split on the action: goes on with the actions that go left (or right if
+    // none do) and stacks a fork with the others.
+    macro_rules! fork {
+        ($l:expr, $node:expr) => {{
+            let (l, node): (usize, Node) = ($l, $node);
+            let mut le = 0u64;
+            for (j, &a) in acts.iter().enumerate() {
+                le |= ((a <= node.val) as u64) << j;
+            }
+            let (left, right) = (masks[l] & le, masks[l] & !le);
+            if left == 0 {
+                at[l] = node.left + 1;
+            } else {
+                if right != 0 {
+                    stack[top] = Fork { node: node.left + 1, slot: slots[l], mask: right };
+                    top += 1;
+                }
+                (at[l], masks[l]) = (node.left, left);
+            }
+        }};
+    }
     // Gives lane l the next walk, from the stack first; false when there is none.
     macro_rules! take {
         ($l:expr) => {{
@@ -627,6 +649,12 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
                     (tree(next), offset, start, full, next as u32)
                 };
                 next += 1;
+                // A walk from a fork starts at a split on the action: taking it now spares the
+                // lane a round of standing still there.
+                let node = nodes[l][at[l] as usize];
+                if node.feat == feat_d {
+                    fork!(l, node);
+                }
                 true
             } else {
                 false
@@ -667,20 +695,7 @@ fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
             stopped &= stopped - 1;
             let node = nodes[l][at[l] as usize];
             if node.feat == feat_d {
-                let mut le = 0u64;
-                for (j, &a) in acts.iter().enumerate() {
-                    le |= ((a <= node.val) as u64) << j;
-                }
-                let (left, right) = (masks[l] & le, masks[l] & !le);
-                if left == 0 {
-                    at[l] = node.left + 1;
-                } else {
-                    if right != 0 {
-                        stack[top] = Fork { node: node.left + 1, slot: slots[l], mask: right };
-                        top += 1;
-                    }
-                    (at[l], masks[l]) = (node.left, left);
-                }
+                fork!(l, node);
             } else {
                 leaf(slots[l] as usize, masks[l], node.val);
                 if !take!(l) {
