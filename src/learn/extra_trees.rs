@@ -568,12 +568,13 @@ struct Fork {
 /// leaf or an action split; between rounds, a walk at an action split goes on with the actions
 /// that go left (or right if none do) and a fork with the others is stacked, and a walk at a leaf
 /// is reported and its lane given the next walk at once, from the stack first (waiting for every
-/// lane to reach a leaf left most steps idle: leaves lie at very different depths). A slot that
-/// starts at an action split (a fork) takes it when its lane is given it. So a slot
+/// lane to reach a leaf left most steps idle: leaves lie at very different depths). So a slot
 /// starts only when the stack is empty, at most [`LANES`] slots have walks left, and the walks of a
 /// slot carry disjoint non-empty sets of actions: the stack never holds more than
-/// `LANES × acts.len()`. Each (slot, action) gets one leaf, which the callers put in a cell of its
-/// own, so the order the leaves are reported in does not reach the results.
+/// `LANES × acts.len()`. A slot that starts at an action split (a fork) takes it as its lane is
+/// given it, with the same rule, rather than a round later. Each (slot, action) gets one leaf,
+/// which the callers put in a cell of its own, so the order the leaves are reported in does not
+/// reach the results.
 #[inline(always)]
 fn forked_walks<'a, const SAME_TREE: bool, const SAME_STATE: bool>(
     n_slots: usize,
