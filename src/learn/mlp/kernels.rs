@@ -365,21 +365,35 @@ pub fn outer<L: Lanes>(d: &[V], a: &[V], n_out: usize, n_in: usize, nv: usize, g
             tile!(1 1 1 2 1 3 1 4 2 1 2 2 2 3 2 4 3 1 3 2 3 3 3 4 4 1 4 2 4 3 4 4 5 1 5 2 5 3 5 4);
             i0 += mi;
         }
-        // The bias sums of these units, interleaved so their add chains overlap.
-        let mut acc = [L::splat(0.0); MO];
-        for (m, x) in acc[..mo].iter_mut().enumerate() {
-            *x = L::load(&gb[o0 + m]);
-        }
-        for v in 0..nv {
-            for (m, x) in acc[..mo].iter_mut().enumerate() {
-                // SAFETY: checked above (unit o0 + m < n_out, v < nv ≤ CHUNK).
-                *x = x.add(L::load(unsafe { d.get_unchecked((o0 + m) * CHUNK + v) }));
-            }
-        }
-        for (m, x) in acc[..mo].iter().enumerate() {
-            x.store(&mut gb[o0 + m]);
+        // The bias sums of these units, interleaved so their add chains overlap (a tile per
+        // count, so the sums stay in registers).
+        match mo {
+            1 => bias_tile::<L, 1>(d, o0, nv, gb),
+            2 => bias_tile::<L, 2>(d, o0, nv, gb),
+            3 => bias_tile::<L, 3>(d, o0, nv, gb),
+            4 => bias_tile::<L, 4>(d, o0, nv, gb),
+            5 => bias_tile::<L, 5>(d, o0, nv, gb),
+            _ => unreachable!(),
         }
         o0 += mo;
+    }
+}
+
+/// `gb[o0 + m] ← gb[o0 + m] + d[o0 + m][v]` for `m < M`, `v < nv` in increasing order.
+#[inline(always)]
+fn bias_tile<L: Lanes, const M: usize>(d: &[V], o0: usize, nv: usize, gb: &mut [V]) {
+    let mut acc = [L::splat(0.0); M];
+    for (m, x) in acc.iter_mut().enumerate() {
+        *x = L::load(&gb[o0 + m]);
+    }
+    for v in 0..nv {
+        for (m, x) in acc.iter_mut().enumerate() {
+            // SAFETY: `outer` checked the extent of `d` for every unit and v < nv ≤ CHUNK.
+            *x = x.add(L::load(unsafe { d.get_unchecked((o0 + m) * CHUNK + v) }));
+        }
+    }
+    for (m, x) in acc.iter().enumerate() {
+        x.store(&mut gb[o0 + m]);
     }
 }
 
