@@ -479,7 +479,10 @@ pub fn search(json: bool) -> Result<Value> {
     spec.search.iterations = 5;
     spec.search.datasets = 2;
     spec.search.network.max_epochs = 400;
-    let population = initial_population(spec.seed, &spec.search.genes, 8);
+    let population: Vec<_> = initial_population(spec.seed, &spec.search.genes, 8)
+        .iter()
+        .map(|c| crate::ga::chromosome::decode(c, &spec.search.genes))
+        .collect();
     let units: Vec<(usize, usize)> =
         (0..population.len()).flat_map(|c| (0..spec.search.datasets).map(move |d| (c, d))).collect();
     let mut rows = Vec::new();

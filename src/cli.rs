@@ -194,7 +194,7 @@ pub struct SearchArgs {
     #[arg(required_unless_present = "resume")]
     pub env: Option<String>,
     /// Resume the search in this run directory (after Ctrl-C, a crash, kill -9 or a time budget).
-    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "preset", "quick", "population", "datasets", "iterations", "episodes", "seed", "out"])]
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "preset", "quick", "prune", "population", "datasets", "iterations", "episodes", "seed", "out"])]
     pub resume: Option<PathBuf>,
     /// Overlay a preset (a name under searches/presets/ or a file); repeatable, applied in order.
     #[arg(long)]
@@ -202,6 +202,9 @@ pub struct SearchArgs {
     /// A small, real search (the `quick` preset): about a minute on 2 cores.
     #[arg(long)]
     pub quick: bool,
+    /// Turn on the spec's opt-in pruning (the `prune` preset; beyond the thesis, see README).
+    #[arg(long)]
+    pub prune: bool,
     /// Generations to run.
     #[arg(long)]
     pub generations: Option<usize>,
@@ -361,7 +364,13 @@ pub struct EnvsArgs {
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<ExitCode> {
-    if let Some(n) = cli.jobs {
+    // A Slurm task uses the cores it was given (`--slurm-cpus-per-task`) unless told otherwise.
+    let slurm_cpus = || std::env::var("SLURM_CPUS_PER_TASK").ok().and_then(|v| v.parse::<usize>().ok());
+    let jobs = match &cli.command {
+        Command::Worker(_) => cli.jobs.or_else(slurm_cpus),
+        _ => cli.jobs,
+    };
+    if let Some(n) = jobs {
         anyhow::ensure!(n >= 1, "invalid --jobs = 0: must be ≥ 1");
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().context("setting up the thread pool")?;
     }
@@ -567,6 +576,9 @@ fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
         dir.clone()
     } else {
         let mut presets: Vec<String> = if a.quick { vec!["quick".into()] } else { vec![] };
+        if a.prune {
+            presets.push("prune".into());
+        }
         presets.extend(a.preset.iter().cloned());
         let o = SearchOverrides {
             generations: a.generations,

@@ -390,7 +390,7 @@ pub fn run(
         }
         run_unit(dir, &cfg, id)
     };
-    exec.run(&ids, &work, &|| progress.unit_done(), &stop)?;
+    exec.run(&ids, &work, &|_| progress.unit_done(""), &stop)?;
     progress.stage_done();
     progress.finish();
     Ok(ids.iter().all(|id| unit_path(dir, id).is_file()))

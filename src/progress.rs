@@ -32,7 +32,7 @@ impl Progress {
             );
             let inner = multi.add(ProgressBar::new(0));
             inner.set_style(
-                ProgressStyle::with_template("{prefix:>11} [{bar:30}] {pos}/{len}  ETA {eta}  {msg}")
+                ProgressStyle::with_template("{prefix:>11} [{bar:30}] {pos}/{len}  {msg}")
                     .expect("valid template")
                     .progress_chars("=> "),
             );
@@ -41,7 +41,7 @@ impl Progress {
         Progress { bars, started: Instant::now(), inner: Mutex::new((0, 0, Instant::now())), quiet }
     }
 
-    /// Starts a stage of `total` units (e.g. a generation).
+    /// Starts a stage of `total` units (e.g. a generation; more can be added).
     pub fn start_stage(&self, name: &str, total: u64) {
         *self.inner.lock().expect("progress lock") = (0, total, Instant::now());
         if let Some((_, _, inner)) = &self.bars {
@@ -49,32 +49,40 @@ impl Progress {
             inner.set_length(total);
             inner.set_position(0);
             inner.reset_eta();
-        } else if !self.quiet {
+        } else if !self.quiet && total > 0 {
             eprintln!("{} {name}: {total} units to run", stamp());
         }
     }
 
-    /// One unit of the current stage is done.
-    pub fn unit_done(&self) {
+    /// Adds `n` units to the current stage (work found as the stage goes, e.g. a round of datasets).
+    pub fn add_to_stage(&self, n: u64) {
+        let total = {
+            let mut g = self.inner.lock().expect("progress lock");
+            g.1 += n;
+            g.1
+        };
+        if let Some((_, _, inner)) = &self.bars {
+            inner.set_length(total);
+        } else if !self.quiet && n > 0 {
+            eprintln!("{}   {n} units to run ({total} in this stage)", stamp());
+        }
+    }
+
+    /// One unit of the current stage is done; `note` (e.g. an ETA) is shown beside the bar, and in
+    /// the plain log every 10 units.
+    pub fn unit_done(&self, note: &str) {
         let (done, total, since) = {
             let mut g = self.inner.lock().expect("progress lock");
             g.0 += 1;
             *g
         };
+        let per = since.elapsed().as_secs_f64() / done as f64;
+        let note = if note.is_empty() { format!("stage ≈ {}", human(per * total as f64)) } else { note.to_string() };
         if let Some((_, _, inner)) = &self.bars {
             inner.inc(1);
-            if done == 1 || done.is_multiple_of(5) {
-                let per = since.elapsed().as_secs_f64() / done as f64;
-                inner.set_message(format!("{:.1} s/unit, stage ≈ {}", per, human(per * total as f64)));
-            }
+            inner.set_message(format!("{per:.1} s/unit · {note}"));
         } else if !self.quiet && (done == 1 || done == total || done.is_multiple_of(10)) {
-            let per = since.elapsed().as_secs_f64() / done as f64;
-            eprintln!(
-                "{}   {done}/{total} units ({:.1} s/unit; projected stage time {})",
-                stamp(),
-                per,
-                human(per * total as f64)
-            );
+            eprintln!("{}   {done}/{total} units ({per:.1} s/unit; {note})", stamp());
         }
     }
 

@@ -135,6 +135,10 @@ pub struct SearchSpec {
     pub ga: GaParams,
     /// Stop rules.
     pub stop: StopRules,
+    /// Opt-in pruning of individuals whose first datasets score far below the parent pool
+    /// (beyond the thesis; off when absent).
+    #[serde(default)]
+    pub prune: crate::ga::prune::PruneRule,
 }
 
 impl SearchSpec {
@@ -160,7 +164,7 @@ impl SearchSpec {
         if let Some(s) = self.stop.stall_generations {
             ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
         }
-        Ok(())
+        self.prune.validate()
     }
 }
 
@@ -179,8 +183,9 @@ pub struct Spec {
 }
 
 /// Built-in copies of the shipped presets (overlays).
-const BUILTIN_PRESETS: [(&str, &str); 2] = [
+const BUILTIN_PRESETS: [(&str, &str); 3] = [
     ("quick", include_str!("../searches/presets/quick.json")),
+    ("prune", include_str!("../searches/presets/prune.json")),
     ("thesis-text-ranges", include_str!("../searches/presets/thesis-text-ranges.json")),
 ];
 
@@ -369,7 +374,7 @@ mod tests {
     fn errors_name_file_and_field() {
         let origin = Path::new("my.json");
         let base = BUILTIN[2].1;
-        let mut v: serde_json::Value = serde_json::from_str(base).unwrap();
+        let mut v = Spec::parse_value(base, origin).unwrap();
         v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!("many");
         let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
         assert!(e.starts_with("my.json: field experiments.et.learner"), "{e}");

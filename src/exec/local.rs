@@ -1,9 +1,15 @@
 //! The local executor: units in parallel on this machine's rayon pool.
+//!
+//! Every thread of the pool takes the next unit from one queue, in the order given (longest
+//! expected first), so the last units of a generation are short ones. Units are not rayon tasks:
+//! a thread waiting inside a unit (for the per-action fits it split off, say) can only steal such
+//! inner work, never a whole other unit, and when the queue runs dry the idle threads help the
+//! units still running (see [`crate::exec::idle_threads`]).
 
-use super::Executor;
+use super::{Executor, RunningUnit};
 use crate::error::Result;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Runs units on the rayon pool (`--jobs` threads).
 #[derive(Debug, Default, Clone, Copy)]
@@ -14,18 +20,38 @@ impl Executor for Local {
         &self,
         ids: &[String],
         work: &(dyn Fn(&str) -> Result<()> + Sync),
-        done: &(dyn Fn() + Sync),
+        done: &(dyn Fn(&str) + Sync),
         stop: &AtomicBool,
     ) -> Result<()> {
-        // One unit per task: units are long (whole FQI runs), so scheduling overhead is irrelevant and
-        // fine-grained stealing keeps both cores busy until the end of a generation.
-        ids.par_iter().with_max_len(1).try_for_each(|id| {
-            if stop.load(Ordering::SeqCst) {
-                return Ok(());
+        let next = AtomicUsize::new(0);
+        let first_error = Mutex::new(None);
+        let workers = rayon::current_num_threads().min(ids.len());
+        rayon::scope(|s| {
+            for _ in 0..workers {
+                s.spawn(|_| {
+                    loop {
+                        if stop.load(Ordering::SeqCst) || first_error.lock().expect("error slot").is_some() {
+                            return;
+                        }
+                        let Some(id) = ids.get(next.fetch_add(1, Ordering::SeqCst)) else { return };
+                        let result = {
+                            let _running = RunningUnit::start();
+                            work(id)
+                        };
+                        match result {
+                            Ok(()) => done(id),
+                            Err(e) => {
+                                first_error.lock().expect("error slot").get_or_insert(e);
+                                return;
+                            }
+                        }
+                    }
+                });
             }
-            work(id)?;
-            done();
-            Ok(())
-        })
+        });
+        match first_error.into_inner().expect("error slot") {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
     }
 }

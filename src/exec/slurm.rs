@@ -122,12 +122,12 @@ impl Executor for Slurm {
         &self,
         ids: &[String],
         _work: &(dyn Fn(&str) -> Result<()> + Sync),
-        done: &(dyn Fn() + Sync),
+        done: &(dyn Fn(&str) + Sync),
         stop: &AtomicBool,
     ) -> Result<()> {
         let mut missing: Vec<String> = ids.iter().filter(|id| !self.result_path(id).is_file()).cloned().collect();
-        for _ in 0..ids.len() - missing.len() {
-            done();
+        for id in ids.iter().filter(|id| !missing.contains(id)) {
+            done(id);
         }
         let mut last: Vec<(String, PathBuf)> = Vec::new();
         let mut said = String::new();
@@ -138,11 +138,13 @@ impl Executor for Slurm {
             let (logs, stderr) = self.submit(&missing, attempt)?;
             said = stderr;
             last = missing.iter().cloned().zip(logs).collect();
-            let before = missing.len();
-            missing.retain(|id| !self.result_path(id).is_file());
-            for _ in 0..before - missing.len() {
-                done();
-            }
+            missing.retain(|id| {
+                let there = self.result_path(id).is_file();
+                if there {
+                    done(id);
+                }
+                !there
+            });
         }
         if !missing.is_empty() && !stop.load(Ordering::SeqCst) {
             let shown: Vec<String> = last

@@ -2,4 +2,6 @@
 
 pub mod chromosome;
 pub mod operators;
+pub mod prune;
 pub mod search;
+pub mod units;

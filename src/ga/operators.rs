@@ -82,19 +82,25 @@ pub struct Birth {
 }
 
 /// The next generation: elites first (in rank order, unchanged), then the children.
+/// Only `eligible` individuals (all of them unless pruning removed some) are elites or parents.
 /// Returns the population and, for each child, its [`Birth`].
 pub fn next_generation(
     seed: u64,
     generation: usize,
     population: &[Chromosome],
     fitness: &[f64],
+    eligible: &[bool],
     ranges: &GeneRanges,
     ga: &GaParams,
 ) -> (Vec<Chromosome>, Vec<Birth>) {
-    let order = rank(fitness);
+    let mut order: Vec<usize> = rank(fitness).into_iter().filter(|&i| eligible[i]).collect();
+    if order.is_empty() {
+        // Nobody eligible (not reachable: elites are never pruned); fall back to every individual.
+        order = rank(fitness);
+    }
     let bounds = ranges.bounds();
     let mut next: Vec<Chromosome> = order.iter().take(ga.n_elites()).map(|&i| population[i]).collect();
-    let pool = &order[..ga.n_parents()];
+    let pool = &order[..ga.n_parents().min(order.len())];
     let mut births = Vec::new();
     let mut child = 0u64;
     while next.len() < ga.population {
@@ -150,7 +156,7 @@ mod tests {
     #[test]
     fn elites_pass_unchanged_and_children_come_from_the_best_half() {
         let (r, ga, pop, fit) = setup();
-        let (next, births) = next_generation(3, 0, &pop, &fit, &r, &ga);
+        let (next, births) = next_generation(3, 0, &pop, &fit, &vec![true; pop.len()], &r, &ga);
         assert_eq!(next.len(), 20);
         let order = rank(&fit);
         for e in 0..4 {
@@ -172,6 +178,25 @@ mod tests {
     }
 
     #[test]
+    fn ineligible_individuals_are_never_elites_or_parents() {
+        let (r, ga, pop, fit) = setup();
+        // The best twelve are ineligible (say, pruned): elites and parents come from the rest.
+        let order = rank(&fit);
+        let mut eligible = vec![true; pop.len()];
+        for &i in &order[..12] {
+            eligible[i] = false;
+        }
+        let (next, births) = next_generation(3, 0, &pop, &fit, &eligible, &r, &ga);
+        assert_eq!(next.len(), 20);
+        for e in 0..4 {
+            assert_eq!(next[e], pop[order[12 + e]], "elite {e}");
+        }
+        for b in &births {
+            assert!(b.parents.iter().all(|&p| eligible[p] && order[12..].contains(&p)));
+        }
+    }
+
+    #[test]
     fn mutation_frequencies_match_the_spec() {
         let (r, ga, pop, fit) = setup();
         let (mut children, mut mutated, mut genes_changed_draws) = (0usize, 0usize, 0usize);
@@ -179,7 +204,7 @@ mod tests {
         // Resampling draws over the full range can land on the same value; measure the draw rate
         // with a range where that is rare (a_δ: 90 values) among mutated children.
         for generation in 0..400 {
-            let (next, births) = next_generation(11, generation, &pop, &fit, &r, &ga);
+            let (next, births) = next_generation(11, generation, &pop, &fit, &[true; 20], &r, &ga);
             for (b, c) in births.iter().zip(&next[4..]) {
                 children += 1;
                 if b.mutated {

@@ -13,24 +13,22 @@
 
 use super::chromosome::{Chromosome, Decoded, decode};
 use super::operators::{initial_population, next_generation, rank};
-use crate::dataset::{self, Dataset, dataset_seed};
+use super::prune;
+pub use super::units::{Evaluator, UnitResult, parse_unit_id, unit_id};
+use super::units::{activation_name, expected_cost, setting_id};
 use crate::error::{Error, Result};
 use crate::exec::Executor;
-use crate::fqi::{Divergence, Fqi, FqiSettings};
-use crate::learn::actions::Encoded;
-use crate::learn::mlp::MlpParams;
 use crate::progress::{Progress, human};
 use crate::report::plot::FitnessRow;
 use crate::report::stats::summarize;
-use crate::rng;
 use crate::spec::Spec;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
 use crate::tuned::TunedConfig;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// What was asked for, saved as `run.json`.
@@ -52,25 +50,6 @@ pub struct RunInfo {
     pub version: String,
 }
 
-/// One FQI run of a chromosome on a search dataset.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct UnitResult {
-    /// The genes.
-    pub chromosome: Chromosome,
-    /// Search dataset index.
-    pub dataset: usize,
-    /// Score of the greedy policy after the last iteration; `None` if the run diverged.
-    pub score: Option<f64>,
-    /// Steps survived in that evaluation.
-    pub steps: Option<f64>,
-    /// Set when the run diverged.
-    pub diverged: Option<Divergence>,
-    /// Epochs run over all iterations and networks.
-    pub epochs: usize,
-    /// Wall-clock seconds (not part of any comparison).
-    pub seconds: f64,
-}
-
 /// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.
 pub fn fitness(scores: &[Option<f64>]) -> f64 {
     let mut sum = 0.0;
@@ -87,19 +66,6 @@ fn finite(f: f64) -> Option<f64> {
     f.is_finite().then_some(f)
 }
 
-/// The unit id (result file stem) of a chromosome on a dataset, e.g. `0_58_2_60_2.d3`.
-pub fn unit_id(c: &Chromosome, dataset: usize) -> String {
-    let genes: Vec<String> = c.iter().map(i64::to_string).collect();
-    format!("{}.d{dataset}", genes.join("_"))
-}
-
-/// Parses a unit id back into (chromosome, dataset).
-pub fn parse_unit_id(id: &str) -> Option<(Chromosome, usize)> {
-    let (genes, d) = id.rsplit_once(".d")?;
-    let v: Vec<i64> = genes.split('_').map(str::parse).collect::<std::result::Result<_, _>>().ok()?;
-    Some((v.try_into().ok()?, d.parse().ok()?))
-}
-
 /// One individual of a generation, as logged.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IndividualRecord {
@@ -110,12 +76,32 @@ pub struct IndividualRecord {
     /// What they decode to.
     #[serde(flatten)]
     pub decoded: Decoded,
-    /// Score per search dataset (`null` = diverged).
+    /// The result's name ([`setting_id`]): individuals with the same setting share one evaluation.
+    pub setting: String,
+    /// Other individuals of this generation that decode alike, and so share this result.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shares_with: Vec<usize>,
+    /// Score per search dataset run (`null` = diverged); a pruned individual has fewer.
     pub scores: Vec<Option<f64>>,
-    /// Mean score, `null` when any dataset diverged (fitness −∞).
+    /// Mean score; `null` when any dataset diverged (fitness −∞) or when pruned.
     pub fitness: Option<f64>,
+    /// Pruned (`search.prune`): its datasets stopped once their mean fell below the cutoff.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub pruned: bool,
     /// How it came about: `initial`, `elite` or `child`.
     pub origin: String,
+}
+
+impl IndividualRecord {
+    /// The fitness used for ranking: −∞ when diverged or pruned.
+    pub fn rank_fitness(&self) -> f64 {
+        self.fitness.unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// The mean of the scores run so far (a pruned individual's partial score).
+    pub fn partial_mean(&self) -> Option<f64> {
+        finite(fitness(&self.scores)).filter(|_| !self.scores.is_empty())
+    }
 }
 
 /// Statistics of a generation's finite fitnesses.
@@ -131,6 +117,9 @@ pub struct GenerationStats {
     pub std: Option<f64>,
     /// Individuals with fitness −∞ (a diverged run).
     pub diverged: usize,
+    /// Individuals pruned (`search.prune`).
+    #[serde(default)]
+    pub pruned: usize,
 }
 
 /// One line of `generations.jsonl`.
@@ -142,6 +131,14 @@ pub struct GenerationRecord {
     pub individuals: Vec<IndividualRecord>,
     /// Fitness statistics.
     pub stats: GenerationStats,
+    /// Units (setting × dataset) this generation needed that no earlier generation had: the
+    /// FQI runs it cost. Shared settings, elites and settings seen before cost nothing.
+    #[serde(default)]
+    pub new_units: usize,
+    /// Pruning's cutoff for this generation (`search.prune`): the previous generation's
+    /// parent-pool line minus the margin; absent when pruning is off or in generation 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prune_below: Option<f64>,
     /// Best individual so far (over all generations).
     pub best_so_far: IndividualRecord,
     /// Generation in which the best so far was found.
@@ -165,6 +162,29 @@ pub struct RunState {
     pub reason: String,
     /// Last update (UTC).
     pub updated: String,
+    /// Wall-clock seconds of each completed generation (summed over invocations).
+    #[serde(default)]
+    pub generation_seconds: Vec<f64>,
+    /// Seconds spent so far in the generation under way.
+    #[serde(default)]
+    pub current_seconds: f64,
+    /// Units of the generation under way: computed, and to compute (an upper bound with pruning).
+    #[serde(default)]
+    pub units_done: usize,
+    /// See `units_done`.
+    #[serde(default)]
+    pub units_total: usize,
+    /// Projected seconds to the end of the search if it runs every planned generation (the stall
+    /// rule may end it sooner), refined as units finish.
+    #[serde(default)]
+    pub eta_seconds: Option<f64>,
+}
+
+impl RunState {
+    /// Wall-clock seconds the search has run, over all invocations.
+    pub fn elapsed(&self) -> f64 {
+        self.generation_seconds.iter().sum::<f64>() + self.current_seconds
+    }
 }
 
 /// How a search ended.
@@ -174,90 +194,6 @@ pub enum Ending {
     Finished(String),
     /// Stopped early (Ctrl-C, time budget); resumable.
     Interrupted(String),
-}
-
-/// Evaluates units of one search: datasets are collected lazily and shared.
-pub struct Evaluator {
-    spec: Spec,
-    dir: PathBuf,
-    data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
-}
-
-impl Evaluator {
-    /// An evaluator for the search in `dir` with resolved `spec`.
-    pub fn new(spec: Spec, dir: &Path) -> Self {
-        Evaluator { spec, dir: dir.to_path_buf(), data: Mutex::new(HashMap::new()) }
-    }
-
-    fn dataset(&self, d: usize) -> Result<Arc<(Dataset, Encoded)>> {
-        if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
-            return Ok(x.clone());
-        }
-        let env = self.spec.env.env();
-        let s = &self.spec.search;
-        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, "search", d))?;
-        let enc = Encoded::new(&data, env.actions(), s.actions)?;
-        let x = Arc::new((data, enc));
-        self.data.lock().expect("dataset cache").insert(d, x.clone());
-        Ok(x)
-    }
-
-    /// The network a chromosome stands for.
-    pub fn network(&self, c: &Chromosome) -> MlpParams {
-        let d = decode(c, &self.spec.search.genes);
-        MlpParams {
-            activation: d.activation,
-            delta_min: d.delta_min,
-            patience: d.patience,
-            ..self.spec.search.network.clone()
-        }
-    }
-
-    /// Runs FQI for chromosome `c` on search dataset `d`: a pure function of (spec, c, d).
-    pub fn evaluate(&self, c: &Chromosome, d: usize) -> Result<UnitResult> {
-        let t = Instant::now();
-        let x = self.dataset(d)?;
-        let (data, enc) = (&x.0, &x.1);
-        let s = &self.spec.search;
-        let params = self.network(c);
-        // Only the last iteration's score counts for fitness.
-        let settings = FqiSettings { algorithm: s.algorithm, iterations: s.iterations, eval_every: s.iterations };
-        let mut idx: Vec<u64> = c.iter().map(|&g| g as u64).collect();
-        idx.push(d as u64);
-        let fit_seed = rng::derive(self.spec.seed, "init", &idx);
-        let eval_seed = rng::derive(self.spec.seed, "eval/search", &[d as u64]);
-        let rec = Fqi::new(self.spec.env.env(), data, enc, &params, settings, fit_seed, eval_seed).run(|_| {})?;
-        let last = rec.iterations.last();
-        Ok(UnitResult {
-            chromosome: *c,
-            dataset: d,
-            score: rec.final_score(),
-            steps: if rec.diverged.is_some() { None } else { last.and_then(|r| r.steps) },
-            diverged: rec.diverged.clone(),
-            epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
-            seconds: t.elapsed().as_secs_f64(),
-        })
-    }
-
-    /// Where a unit's result is stored.
-    pub fn unit_path(&self, id: &str) -> PathBuf {
-        self.dir.join("units").join(format!("{id}.json"))
-    }
-
-    /// Computes a unit and stores it atomically.
-    pub fn run_unit(&self, id: &str) -> Result<()> {
-        let (c, d) = parse_unit_id(id).ok_or_else(|| Error::invalid("unit", id, "must look like 0_58_2_60_2.d3"))?;
-        let r = self.evaluate(&c, d)?;
-        if let Some(div) = &r.diverged {
-            eprintln!("note: unit {id} diverged at iteration {} ({}): fitness −∞", div.iteration, div.reason);
-        }
-        write_json(&self.unit_path(id), &r)
-    }
-
-    /// Reads a stored unit, if present and whole.
-    pub fn load_unit(&self, id: &str) -> Option<UnitResult> {
-        read_json(&self.unit_path(id)).ok()
-    }
 }
 
 /// Stop controls of one invocation.
@@ -394,24 +330,31 @@ pub fn load_spec(dir: &Path) -> Result<Spec> {
     Spec::load(&path)
 }
 
-fn record_for(index: usize, c: &Chromosome, ev: &Evaluator, origin: &str) -> Result<IndividualRecord> {
-    let s = &ev.spec.search;
-    let mut scores = Vec::with_capacity(s.datasets);
-    for d in 0..s.datasets {
-        let id = unit_id(c, d);
-        let u = ev.load_unit(&id).ok_or_else(|| Error::File {
-            path: ev.unit_path(&id),
-            message: "missing unit result after evaluation".into(),
-        })?;
-        scores.push(u.score);
+/// The stored scores of setting `s` on datasets `0..n`, as far as they run without a gap.
+fn stored_scores(ev: &Evaluator, s: &Decoded, n: usize) -> Vec<Option<f64>> {
+    (0..n).map_while(|d| ev.load_unit(&unit_id(s, d)).map(|u| u.score)).collect()
+}
+
+/// The record of individual `index`, from the stored scores of its setting.
+fn record_for(index: usize, c: &Chromosome, ev: &Evaluator, origin: &str, pruned: bool) -> Result<IndividualRecord> {
+    let s = &ev.spec().search;
+    let decoded = decode(c, &s.genes);
+    let scores = stored_scores(ev, &decoded, s.datasets);
+    let complete = scores.len() == s.datasets;
+    if !complete && !pruned && !scores.contains(&None) {
+        let id = unit_id(&decoded, scores.len());
+        return Err(Error::File { path: ev.unit_path(&id), message: "missing unit result after evaluation".into() });
     }
-    let f = fitness(&scores);
+    let f = if complete && !pruned { fitness(&scores) } else { f64::NEG_INFINITY };
     Ok(IndividualRecord {
         index,
         genes: *c,
-        decoded: decode(c, &s.genes),
+        decoded,
+        setting: setting_id(&decoded),
+        shares_with: Vec::new(),
         scores,
         fitness: finite(f),
+        pruned,
         origin: origin.to_string(),
     })
 }
@@ -419,22 +362,19 @@ fn record_for(index: usize, c: &Chromosome, ev: &Evaluator, origin: &str) -> Res
 fn stats(records: &[IndividualRecord]) -> GenerationStats {
     let f: Vec<f64> = records.iter().filter_map(|r| r.fitness).collect();
     let s = summarize(&f);
+    let pruned = records.iter().filter(|r| r.pruned).count();
     GenerationStats {
         min: f.iter().copied().reduce(f64::min),
         mean: s.map(|s| s.mean),
         max: f.iter().copied().reduce(f64::max),
         std: s.map(|s| s.std),
-        diverged: records.len() - f.len(),
+        diverged: records.len() - f.len() - pruned,
+        pruned,
     }
 }
 
 fn describe(d: &Decoded) -> String {
-    format!(
-        "{} δ_min {} patience {}",
-        serde_json::to_value(d.activation).unwrap_or_default().as_str().unwrap_or("?"),
-        d.delta_min,
-        d.patience
-    )
+    format!("{} δ_min {} patience {}", activation_name(d.activation), d.delta_min, d.patience)
 }
 
 /// The tuned config of the best individual.
@@ -446,7 +386,7 @@ fn tuned(spec: &Spec, best: &IndividualRecord, generation: usize, ev: &Evaluator
         activation: best.decoded.activation,
         delta_min: best.decoded.delta_min,
         patience: best.decoded.patience,
-        network: ev.network(&best.genes),
+        network: ev.network(&best.decoded),
         actions: s.actions,
         algorithm: s.algorithm,
         iterations: s.iterations,
@@ -462,26 +402,236 @@ fn tuned(spec: &Spec, best: &IndividualRecord, generation: usize, ev: &Evaluator
     }
 }
 
-fn write_state(
-    dir: &Path,
-    state: &str,
+/// Timing of the search across invocations, for `state.json`, the progress line and the ETA.
+struct Clock {
+    /// Completed generations' wall seconds (from earlier invocations too).
+    generation_seconds: Vec<f64>,
+    /// Seconds the current generation ran in earlier invocations.
+    prior: f64,
+    /// Start of the current generation in this invocation.
+    since: Instant,
+    /// Expected seconds of each unit of the current generation still to run, and of those done.
+    expected: HashMap<String, f64>,
+    done_expected: f64,
+    total_expected: f64,
+    done: usize,
+    total: usize,
+    last_write: Option<Instant>,
+}
+
+impl Clock {
+    fn resume(dir: &Path) -> Clock {
+        let st: Option<RunState> = read_json(&dir.join("state.json")).ok();
+        let (generation_seconds, prior) = match st {
+            Some(st) if st.generation_seconds.len() == st.generation => (st.generation_seconds, st.current_seconds),
+            _ => (Vec::new(), 0.0),
+        };
+        Clock {
+            generation_seconds,
+            prior,
+            since: Instant::now(),
+            expected: HashMap::new(),
+            done_expected: 0.0,
+            total_expected: 0.0,
+            done: 0,
+            total: 0,
+            last_write: None,
+        }
+    }
+
+    /// Seconds of the current generation so far.
+    fn current(&self) -> f64 {
+        self.prior + self.since.elapsed().as_secs_f64()
+    }
+
+    /// Adds units to run in the current generation, with their expected seconds.
+    fn plan(&mut self, units: &[(String, f64)]) {
+        for (id, e) in units {
+            self.expected.insert(id.clone(), *e);
+            self.total_expected += e;
+        }
+        self.total += units.len();
+    }
+
+    fn unit_done(&mut self, id: &str) {
+        self.done += 1;
+        self.done_expected += self.expected.get(id).copied().unwrap_or(0.0);
+    }
+
+    /// Projected wall seconds of the current generation: what ran, plus what is left at the rate
+    /// (expected seconds per second) measured in this invocation.
+    fn projected_generation(&self) -> Option<f64> {
+        let ran = self.since.elapsed().as_secs_f64();
+        if self.done_expected <= 0.0 || ran <= 0.0 {
+            return (self.total == 0).then(|| self.current());
+        }
+        let rate = self.done_expected / ran;
+        Some(self.current() + (self.total_expected - self.done_expected).max(0.0) / rate)
+    }
+
+    /// Projected seconds to the end of generation `generations − 1`, from generation `g`.
+    fn eta(&self, g: usize, generations: usize) -> Option<f64> {
+        let this = self.projected_generation()?;
+        let per = if self.generation_seconds.is_empty() {
+            this
+        } else {
+            self.generation_seconds.iter().sum::<f64>() / self.generation_seconds.len() as f64
+        };
+        Some((this - self.current()).max(0.0) + per * generations.saturating_sub(g + 1) as f64)
+    }
+
+    fn finish_generation(&mut self) -> f64 {
+        let secs = self.current();
+        self.generation_seconds.push(secs);
+        self.prior = 0.0;
+        self.since = Instant::now();
+        self.expected.clear();
+        (self.done_expected, self.total_expected, self.done, self.total) = (0.0, 0.0, 0, 0);
+        secs
+    }
+}
+
+/// What `state.json` says besides the timing.
+struct StateInfo<'a> {
+    state: &'a str,
     generation: usize,
-    spec: &Spec,
-    best: Option<&IndividualRecord>,
-    reason: &str,
-) -> Result<()> {
+    best: Option<&'a IndividualRecord>,
+    reason: &'a str,
+}
+
+fn write_state(dir: &Path, spec: &Spec, info: &StateInfo<'_>, clock: &Clock) -> Result<()> {
+    let running = info.state == "running";
     write_json(
         &dir.join("state.json"),
         &RunState {
-            state: state.into(),
-            generation,
+            state: info.state.into(),
+            generation: info.generation,
             generations: spec.search.stop.generations,
-            best_fitness: best.and_then(|b| b.fitness),
-            best: best.map(|b| b.decoded),
-            reason: reason.into(),
+            best_fitness: info.best.and_then(|b| b.fitness),
+            best: info.best.map(|b| b.decoded),
+            reason: info.reason.into(),
             updated: store::now_utc().1,
+            generation_seconds: clock.generation_seconds.clone(),
+            current_seconds: if info.generation < spec.search.stop.generations { clock.current() } else { 0.0 },
+            units_done: clock.done,
+            units_total: clock.total,
+            eta_seconds: if running { clock.eta(info.generation, spec.search.stop.generations) } else { None },
         },
     )
+}
+
+/// Expected seconds of each unit: the mean of its setting's stored units where there are some,
+/// else [`expected_cost`] scaled by the run's seconds per unit of cost so far.
+fn expected_seconds(ev: &Evaluator, ids: &[(Decoded, usize)]) -> Vec<(String, f64)> {
+    let s = &ev.spec().search;
+    let mut known: HashMap<String, (f64, usize)> = HashMap::new();
+    let mut ratios = Vec::new();
+    let dir = ev.unit_path("x");
+    if let Ok(entries) = std::fs::read_dir(dir.parent().expect("units folder")) {
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let Some(id) = name.strip_suffix(".json") else { continue };
+            let (Some((set, _)), Some(u)) = (parse_unit_id(id), ev.load_unit(id)) else { continue };
+            let k = known.entry(setting_id(&set)).or_insert((0.0, 0));
+            (k.0, k.1) = (k.0 + u.seconds, k.1 + 1);
+            ratios.push(u.seconds / expected_cost(&set, s.network.max_epochs).max(1e-9));
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    let per_cost = ratios.get(ratios.len() / 2).copied().unwrap_or(1.0);
+    ids.iter()
+        .map(|(set, d)| {
+            let e = known
+                .get(&setting_id(set))
+                .map_or(expected_cost(set, s.network.max_epochs) * per_cost, |(t, n)| t / *n as f64);
+            (unit_id(set, *d), e)
+        })
+        .collect()
+}
+
+/// Runs the units `want` that are not stored yet, longest expected first. Returns false when the
+/// run must stop (interrupt, budget, or units missing afterwards), with the reason.
+struct Runner<'a> {
+    dir: &'a Path,
+    spec: &'a Spec,
+    ev: &'a Evaluator,
+    exec: &'a dyn Executor,
+    controls: &'a Controls<'a>,
+    progress: &'a Progress,
+    started: Instant,
+    budget_hit: AtomicBool,
+    stop: AtomicBool,
+    clock: Mutex<Clock>,
+}
+
+impl Runner<'_> {
+    fn over_budget(&self) -> bool {
+        self.controls.max_hours.is_some_and(|h| self.started.elapsed().as_secs_f64() > h * 3600.0)
+    }
+
+    /// Evaluates the missing units among `want`; `Err(reason)` when the run has to stop.
+    fn run(
+        &self,
+        g: usize,
+        want: &[(Decoded, usize)],
+        best: Option<&IndividualRecord>,
+    ) -> Result<std::result::Result<(), String>> {
+        let missing: Vec<(Decoded, usize)> =
+            want.iter().copied().filter(|(s, d)| !self.ev.unit_path(&unit_id(s, *d)).is_file()).collect();
+        let mut planned = expected_seconds(self.ev, &missing);
+        // Longest first (stable: ties keep setting and dataset order), so that the last units of a
+        // generation are short and no core waits long for the others.
+        planned.sort_by(|a, b| b.1.total_cmp(&a.1));
+        self.clock.lock().expect("clock").plan(&planned);
+        self.progress.add_to_stage(planned.len() as u64);
+        let ids: Vec<String> = planned.into_iter().map(|(id, _)| id).collect();
+        // Checked here too, for executors that do not call `work` (Slurm runs units elsewhere).
+        if self.over_budget() {
+            self.budget_hit.store(true, Ordering::SeqCst);
+            self.stop.store(true, Ordering::SeqCst);
+        }
+        let work = |id: &str| -> Result<()> {
+            if self.over_budget() {
+                self.budget_hit.store(true, Ordering::SeqCst);
+                self.stop.store(true, Ordering::SeqCst);
+                return Ok(());
+            }
+            if self.controls.interrupt.load(Ordering::SeqCst) {
+                self.stop.store(true, Ordering::SeqCst);
+                return Ok(());
+            }
+            self.ev.run_unit(id)
+        };
+        let done = |id: &str| {
+            let mut c = self.clock.lock().expect("clock");
+            c.unit_done(id);
+            let eta = c.eta(g, self.spec.search.stop.generations);
+            let gen_left = c.projected_generation().map(|p| (p - c.current()).max(0.0));
+            self.progress.unit_done(&format!(
+                "gen ≈ {} left · search ≈ {} left",
+                gen_left.map_or("?".into(), human),
+                eta.map_or("?".into(), human)
+            ));
+            if c.last_write.is_none_or(|t| t.elapsed().as_secs_f64() > 5.0) {
+                c.last_write = Some(Instant::now());
+                let info = StateInfo { state: "running", generation: g, best, reason: "" };
+                let _ = write_state(self.dir, self.spec, &info, &c);
+            }
+        };
+        self.exec.run(&ids, &work, &done, &self.stop)?;
+        let missing = ids.iter().any(|id| !self.ev.unit_path(id).is_file());
+        if self.stop.load(Ordering::SeqCst) || self.controls.interrupt.load(Ordering::SeqCst) || missing {
+            let reason = if self.budget_hit.load(Ordering::SeqCst) {
+                format!("time budget of {} h reached", self.controls.max_hours.unwrap_or(0.0))
+            } else if self.controls.interrupt.load(Ordering::SeqCst) {
+                "interrupted".to_string()
+            } else {
+                "units missing after evaluation".to_string()
+            };
+            return Ok(Err(reason));
+        }
+        Ok(Ok(()))
+    }
 }
 
 /// Runs (or resumes) the search in `dir`. Unit results already stored are reused.
@@ -494,9 +644,18 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
     let s = &spec.search;
     let progress = Progress::new("generations", s.stop.generations as u64, controls.quiet);
     progress.line(&format!("search {} → {}", spec.env.env().name(), dir.display()));
-    let started = Instant::now();
-    let budget_hit = AtomicBool::new(false);
-    let stop = AtomicBool::new(false);
+    let runner = Runner {
+        dir,
+        spec: &spec,
+        ev: &ev,
+        exec,
+        controls,
+        progress: &progress,
+        started: Instant::now(),
+        budget_hit: AtomicBool::new(false),
+        stop: AtomicBool::new(false),
+        clock: Mutex::new(Clock::resume(dir)),
+    };
 
     let mut population = initial_population(spec.seed, &s.genes, s.ga.population);
     let mut origins = vec!["initial"; population.len()];
@@ -504,62 +663,101 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
     let mut best: Option<(IndividualRecord, usize)> = None;
     let mut hall: Vec<(IndividualRecord, usize)> = Vec::new();
     let mut stall = 0usize;
-    write_state(dir, "running", 0, &spec, None, "")?;
+    // Units needed by earlier generations, so each generation can say what it cost.
+    let mut seen: HashSet<String> = HashSet::new();
+    // Pruning's cutoff: the previous generation's parent-pool line, known before any unit of this
+    // generation runs, so the decisions do not depend on thread count, order or executor.
+    let mut prune_below: Option<f64> = None;
+    {
+        let c = runner.clock.lock().expect("clock");
+        let info = StateInfo {
+            state: "running",
+            generation: c.generation_seconds.len().min(s.stop.generations),
+            best: None,
+            reason: "",
+        };
+        write_state(dir, &spec, &info, &c)?;
+    }
 
     for g in 0..s.stop.generations {
-        // Each distinct chromosome once; stored units are not recomputed.
-        let mut ids = Vec::new();
-        for (i, c) in population.iter().enumerate() {
-            if population[..i].contains(c) {
-                continue;
+        let settings: Vec<Decoded> = population.iter().map(|c| decode(c, &s.genes)).collect();
+        // Each distinct setting once, in order of first appearance.
+        let mut distinct: Vec<Decoded> = Vec::new();
+        for d in &settings {
+            if !distinct.iter().any(|x| setting_id(x) == setting_id(d)) {
+                distinct.push(*d);
             }
-            for d in 0..s.datasets {
-                let id = unit_id(c, d);
-                if !ev.unit_path(&id).is_file() {
-                    ids.push(id);
+        }
+        progress.start_stage(&format!("gen {}", g + 1), 0);
+        let mut pruned: HashSet<String> = HashSet::new();
+        let stopped = match prune_below.filter(|_| s.prune.enabled) {
+            None => {
+                let want: Vec<(Decoded, usize)> =
+                    distinct.iter().flat_map(|x| (0..s.datasets).map(move |d| (*x, d))).collect();
+                runner.run(g, &want, best.as_ref().map(|b| &b.0))?.err()
+            }
+            Some(cutoff) => {
+                // Datasets in rounds: each round runs the next dataset of every setting still
+                // open, then closes the settings whose mean so far is below the cutoff (pruned)
+                // or that diverged (fitness −∞ whatever the rest).
+                let mut open: Vec<Decoded> = distinct.clone();
+                let mut stopped = None;
+                for r in 0..s.datasets {
+                    let want: Vec<(Decoded, usize)> = open.iter().map(|x| (*x, r)).collect();
+                    if let Err(reason) = runner.run(g, &want, best.as_ref().map(|b| &b.0))? {
+                        stopped = Some(reason);
+                        break;
+                    }
+                    open.retain(|x| {
+                        let sc = stored_scores(&ev, x, r + 1);
+                        match prune::decide(&sc, s.datasets, &s.prune, cutoff) {
+                            prune::Verdict::Open => true,
+                            prune::Verdict::Pruned => {
+                                pruned.insert(setting_id(x));
+                                false
+                            }
+                            prune::Verdict::Closed => false,
+                        }
+                    });
                 }
+                stopped
             }
-        }
-        progress.start_stage(&format!("gen {}", g + 1), ids.len() as u64);
-        // Checked here too, for executors that do not call `work` (Slurm runs units elsewhere).
-        if controls.max_hours.is_some_and(|h| started.elapsed().as_secs_f64() > h * 3600.0) {
-            budget_hit.store(true, Ordering::SeqCst);
-            stop.store(true, Ordering::SeqCst);
-        }
-        let work = |id: &str| -> Result<()> {
-            if controls.max_hours.is_some_and(|h| started.elapsed().as_secs_f64() > h * 3600.0) {
-                budget_hit.store(true, Ordering::SeqCst);
-                stop.store(true, Ordering::SeqCst);
-                return Ok(());
-            }
-            if controls.interrupt.load(Ordering::SeqCst) {
-                stop.store(true, Ordering::SeqCst);
-                return Ok(());
-            }
-            ev.run_unit(id)
         };
-        exec.run(&ids, &work, &|| progress.unit_done(), &stop)?;
-        let missing = ids.iter().any(|id| !ev.unit_path(id).is_file());
-        if stop.load(Ordering::SeqCst) || controls.interrupt.load(Ordering::SeqCst) || missing {
-            let reason = if budget_hit.load(Ordering::SeqCst) {
-                format!("time budget of {} h reached", controls.max_hours.unwrap_or(0.0))
-            } else if controls.interrupt.load(Ordering::SeqCst) {
-                "interrupted".to_string()
-            } else {
-                "units missing after evaluation".to_string()
-            };
+        if let Some(reason) = stopped {
             progress.finish();
-            write_state(dir, "interrupted", g, &spec, best.as_ref().map(|b| &b.0), &reason)?;
+            let c = runner.clock.lock().expect("clock");
+            let info =
+                StateInfo { state: "interrupted", generation: g, best: best.as_ref().map(|b| &b.0), reason: &reason };
+            write_state(dir, &spec, &info, &c)?;
             return Ok(Ending::Interrupted(reason));
         }
 
-        let individuals: Vec<IndividualRecord> =
-            population.iter().enumerate().map(|(i, c)| record_for(i, c, &ev, origins[i])).collect::<Result<_>>()?;
-        let fit: Vec<f64> = individuals.iter().map(|r| r.fitness.unwrap_or(f64::NEG_INFINITY)).collect();
-        let top = &individuals[rank(&fit)[0]];
+        let mut individuals: Vec<IndividualRecord> = population
+            .iter()
+            .enumerate()
+            .map(|(i, c)| record_for(i, c, &ev, origins[i], pruned.contains(&setting_id(&settings[i]))))
+            .collect::<Result<_>>()?;
+        for i in 0..individuals.len() {
+            let key = individuals[i].setting.clone();
+            individuals[i].shares_with =
+                (0..individuals.len()).filter(|&j| j != i && individuals[j].setting == key).collect();
+        }
+        let mut new_units = 0;
+        for x in &distinct {
+            for d in 0..s.datasets {
+                let id = unit_id(x, d);
+                if ev.unit_path(&id).is_file() && seen.insert(id) {
+                    new_units += 1;
+                }
+            }
+        }
+        let fit: Vec<f64> = individuals.iter().map(IndividualRecord::rank_fitness).collect();
+        let eligible: Vec<bool> = individuals.iter().map(|r| !r.pruned).collect();
+        let order: Vec<usize> = rank(&fit).into_iter().filter(|&i| eligible[i]).collect();
+        let top = &individuals[order[0]];
         let improved = match &best {
             None => true,
-            Some((b, _)) => fit[top.index] > b.fitness.unwrap_or(f64::NEG_INFINITY),
+            Some((b, _)) => fit[top.index] > b.rank_fitness(),
         };
         if improved {
             best = Some((top.clone(), g));
@@ -567,36 +765,59 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         } else {
             stall += 1;
         }
-        for r in &individuals {
-            if !hall.iter().any(|(h, _)| h.genes == r.genes) {
+        for r in individuals.iter().filter(|r| !r.pruned) {
+            if !hall.iter().any(|(h, _)| h.setting == r.setting) {
                 hall.push((r.clone(), g));
             }
         }
         // Best first; ties keep the earlier discovery first (stable sort).
-        hall.sort_by(|a, b| {
-            b.0.fitness.unwrap_or(f64::NEG_INFINITY).total_cmp(&a.0.fitness.unwrap_or(f64::NEG_INFINITY))
-        });
+        hall.sort_by(|a, b| b.0.rank_fitness().total_cmp(&a.0.rank_fitness()));
         hall.truncate(10);
         let (b, bg) = best.clone().expect("set above");
         let st = stats(&individuals);
+        let this_cutoff = prune_below.filter(|_| s.prune.enabled);
+        // The next generation's cutoff: this generation's parent-pool line (its worst parent).
+        prune_below = order
+            .get(s.ga.n_parents().min(order.len()) - 1)
+            .map(|&i| fit[i] - s.prune.margin)
+            .filter(|v| v.is_finite());
         records.push(GenerationRecord {
             generation: g,
             individuals,
             stats: st.clone(),
+            new_units,
+            prune_below: this_cutoff,
             best_so_far: b.clone(),
             best_generation: bg,
         });
 
         write_outputs(dir, &spec, &records, &hall, &b, bg, &ev)?;
-        write_state(dir, "running", g + 1, &spec, Some(&b), "")?;
+        let (secs, ran) = {
+            let mut c = runner.clock.lock().expect("clock");
+            let ran = c.done;
+            (c.finish_generation(), ran)
+        };
+        {
+            let c = runner.clock.lock().expect("clock");
+            write_state(
+                dir,
+                &spec,
+                &StateInfo { state: "running", generation: g + 1, best: Some(&b), reason: "" },
+                &c,
+            )?;
+        }
         progress.stage_done();
         progress.line(&format!(
-            "gen {}/{}: best {} mean {} ({} diverged) | best so far {} → fitness {} (gen {}) | {}",
+            "gen {}/{}: best {} mean {} ({} diverged{}) | {} units in {} ({}) | best so far {} → fitness {} (gen {}) | {}",
             g + 1,
             s.stop.generations,
             fmt(st.max),
             fmt(st.mean),
             st.diverged,
+            if s.prune.enabled { format!(", {} pruned", st.pruned) } else { String::new() },
+            ran,
+            human(secs),
+            if secs > 0.0 && ran > 0 { format!("{:.2} units/s", ran as f64 / secs) } else { "nothing to run".into() },
             describe(&b.decoded),
             fmt(b.fitness),
             bg + 1,
@@ -606,19 +827,32 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         if let Some(limit) = s.stop.stall_generations.filter(|&l| stall >= l) {
             progress.finish();
             let reason = format!("no improvement for {limit} generations");
-            write_state(dir, "finished", g + 1, &spec, Some(&b), &reason)?;
+            let c = runner.clock.lock().expect("clock");
+            write_state(
+                dir,
+                &spec,
+                &StateInfo { state: "finished", generation: g + 1, best: Some(&b), reason: &reason },
+                &c,
+            )?;
             return Ok(Ending::Finished(reason));
         }
         if g + 1 < s.stop.generations {
-            let (next, _) = next_generation(spec.seed, g, &population, &fit, &s.genes, &s.ga);
-            let elites = s.ga.n_elites();
+            let (next, _) = next_generation(spec.seed, g, &population, &fit, &eligible, &s.genes, &s.ga);
+            let elites = s.ga.n_elites().min(order.len());
             origins = (0..next.len()).map(|i| if i < elites { "elite" } else { "child" }).collect();
             population = next;
         }
     }
     progress.finish();
     let reason = format!("{} generations", s.stop.generations);
-    write_state(dir, "finished", s.stop.generations, &spec, best.as_ref().map(|b| &b.0), &reason)?;
+    let c = runner.clock.lock().expect("clock");
+    let info = StateInfo {
+        state: "finished",
+        generation: s.stop.generations,
+        best: best.as_ref().map(|b| &b.0),
+        reason: &reason,
+    };
+    write_state(dir, &spec, &info, &c)?;
     Ok(Ending::Finished(reason))
 }
 
@@ -746,9 +980,18 @@ pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
             message: format!("spec_hash {h} does not match its spec ({})", spec.hash()),
         });
     }
+    if !spec.search.genes.contains(c) {
+        return Err(Error::File {
+            path: path.to_path_buf(),
+            message: format!("chromosome {c:?} lies outside its spec's gene ranges {:?}", spec.search.genes.bounds()),
+        });
+    }
+    let setting = decode(c, &spec.search.genes);
     let ev = Evaluator::new(spec.clone(), Path::new("."));
-    let scores: Vec<Option<f64>> =
-        (0..spec.search.datasets).into_par_iter().map(|d| ev.evaluate(c, d).map(|u| u.score)).collect::<Result<_>>()?;
+    let scores: Vec<Option<f64>> = (0..spec.search.datasets)
+        .into_par_iter()
+        .map(|d| ev.evaluate(&setting, d).map(|u| u.score))
+        .collect::<Result<_>>()?;
     let differences = scores
         .iter()
         .enumerate()
@@ -761,14 +1004,6 @@ pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn unit_ids_round_trip() {
-        for (c, d) in [([0, 58, 2, 60, 2], 3), ([2, 10, 15, 99, -1], 11)] {
-            assert_eq!(parse_unit_id(&unit_id(&c, d)), Some((c, d)));
-        }
-        assert_eq!(parse_unit_id("junk"), None);
-    }
 
     #[test]
     fn fitness_is_the_mean_or_minus_infinity() {

@@ -11,6 +11,7 @@ use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason};
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
@@ -159,26 +160,32 @@ impl Encoded {
             }
             ActionEncoding::PerAction => {
                 let (na, n) = (self.actions.len(), self.n);
+                // The actions' models are independent (each has its own rows and seed), so they are
+                // fitted in parallel: idle threads take some, results do not depend on which.
+                let fits: Vec<_> = (0..na)
+                    .into_par_iter()
+                    .map(|j| {
+                        let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
+                        let ys: Vec<f64> = self.train_index[lo..hi].iter().map(|&i| y[i]).collect();
+                        let (mut buf, mut next_buf) = (vec![0.0; hi - lo], vec![0.0; n]);
+                        let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
+                        let seed_j = rng::derive(seed, "action", &[j as u64]);
+                        let next = NextStates { states, actions: None, same: &self.twins[j * n..(j + 1) * n] };
+                        let (m, fi, s) = learner.fit_predict_next(
+                            Rows::new(x, self.obs_dim)?,
+                            &ys,
+                            seed_j,
+                            &mut buf,
+                            &next,
+                            &mut next_buf,
+                        )?;
+                        Ok((m, fi, s, buf, next_buf))
+                    })
+                    .collect::<Result<_>>()?;
                 let mut models = Vec::with_capacity(na);
                 let mut info = FitInfo { epochs: 0, stop: StopReason::NotIterative };
                 let mut seconds = 0.0;
-                let (mut ys, mut buf, mut next_buf) = (Vec::new(), Vec::new(), vec![0.0; n]);
-                for j in 0..na {
-                    let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
-                    ys.clear();
-                    ys.extend(self.train_index[lo..hi].iter().map(|&i| y[i]));
-                    buf.resize(hi - lo, 0.0);
-                    let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
-                    let seed_j = rng::derive(seed, "action", &[j as u64]);
-                    let next = NextStates { states, actions: None, same: &self.twins[j * n..(j + 1) * n] };
-                    let (m, fi, s) = learner.fit_predict_next(
-                        Rows::new(x, self.obs_dim)?,
-                        &ys,
-                        seed_j,
-                        &mut buf,
-                        &next,
-                        &mut next_buf,
-                    )?;
+                for (j, (m, fi, s, buf, next_buf)) in fits.into_iter().enumerate() {
                     self.put_action_rows(j, &buf, out);
                     self.put_action_column(j, &next_buf, out_next);
                     seconds += s;

@@ -1,0 +1,232 @@
+//! The search's units of work: one FQI run of a decoded setting on one search dataset.
+//!
+//! Fitness is a function of the decoded settings (activation, δ_min, patience), not of the genes
+//! (SPEC §5): with b_p = 0 the 90 values of a_p decode to 9 patiences. So a unit is named by its
+//! setting and dataset (`sigmoid_5.8e-1_601.d3`), its seeds derive from them, and chromosomes that
+//! decode alike share one result, computed once per run.
+
+use super::chromosome::Decoded;
+use crate::dataset::{self, Dataset, dataset_seed};
+use crate::error::{Error, Result};
+use crate::fqi::{Divergence, Fqi, FqiSettings};
+use crate::learn::actions::Encoded;
+use crate::learn::mlp::{Activation, MlpParams};
+use crate::rng;
+use crate::spec::Spec;
+use crate::store::{read_json, write_json};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// One FQI run of a setting on a search dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UnitResult {
+    /// The decoded settings.
+    pub setting: Decoded,
+    /// Search dataset index.
+    pub dataset: usize,
+    /// Score of the greedy policy after the last iteration; `None` if the run diverged.
+    pub score: Option<f64>,
+    /// Steps survived in that evaluation.
+    pub steps: Option<f64>,
+    /// Set when the run diverged.
+    pub diverged: Option<Divergence>,
+    /// Epochs run over all iterations and networks.
+    pub epochs: usize,
+    /// Wall-clock seconds (not part of any comparison).
+    pub seconds: f64,
+}
+
+/// The activation's name in unit ids and files.
+pub fn activation_name(a: Activation) -> &'static str {
+    match a {
+        Activation::Sigmoid => "sigmoid",
+        Activation::Tanh => "tanh",
+        Activation::Relu => "relu",
+    }
+}
+
+fn activation_by_name(s: &str) -> Option<Activation> {
+    [Activation::Sigmoid, Activation::Tanh, Activation::Relu].into_iter().find(|&a| activation_name(a) == s)
+}
+
+/// A stable code of the activation for seed derivation (independent of the spec's gene order).
+fn activation_code(a: Activation) -> u64 {
+    match a {
+        Activation::Sigmoid => 0,
+        Activation::Tanh => 1,
+        Activation::Relu => 2,
+    }
+}
+
+/// The name of a setting, e.g. `sigmoid_5.8e-1_601`: activation, δ_min (shortest round-trip
+/// form, so it parses back to the same double) and patience.
+pub fn setting_id(s: &Decoded) -> String {
+    format!("{}_{:e}_{}", activation_name(s.activation), s.delta_min, s.patience)
+}
+
+/// Parses [`setting_id`] back.
+pub fn parse_setting_id(id: &str) -> Option<Decoded> {
+    let mut parts = id.split('_');
+    let activation = activation_by_name(parts.next()?)?;
+    let delta_min: f64 = parts.next()?.parse().ok()?;
+    let patience: usize = parts.next()?.parse().ok()?;
+    (parts.next().is_none() && delta_min.is_finite()).then_some(Decoded { activation, delta_min, patience })
+}
+
+/// The unit id (result file stem) of a setting on a dataset, e.g. `sigmoid_5.8e-1_601.d3`.
+pub fn unit_id(s: &Decoded, dataset: usize) -> String {
+    format!("{}.d{dataset}", setting_id(s))
+}
+
+/// Parses a unit id back into (setting, dataset).
+pub fn parse_unit_id(id: &str) -> Option<(Decoded, usize)> {
+    let (setting, d) = id.rsplit_once(".d")?;
+    Some((parse_setting_id(setting)?, d.parse().ok()?))
+}
+
+/// A guess of a unit's cost before it runs, in arbitrary units, for ordering work longest first
+/// and for weighting the first generation's time projection: epochs per fit grow with patience
+/// and with smaller δ_min (more epochs count as improvements before the patience runs out), up
+/// to the epoch cap; ReLU epochs are cheaper than sigmoid and tanh ones.
+pub fn expected_cost(s: &Decoded, max_epochs: usize) -> f64 {
+    let delta_factor = 1.0 + (0.1 / s.delta_min.max(1e-12)).log10().max(0.0);
+    let epochs = ((s.patience as f64 + 1.0) * delta_factor).min(max_epochs as f64);
+    let per_epoch = if s.activation == Activation::Relu { 0.7 } else { 1.0 };
+    epochs * per_epoch
+}
+
+/// Evaluates units of one search: datasets are collected lazily and shared.
+pub struct Evaluator {
+    spec: Spec,
+    dir: PathBuf,
+    data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
+}
+
+impl Evaluator {
+    /// An evaluator for the search in `dir` with resolved `spec`.
+    pub fn new(spec: Spec, dir: &Path) -> Self {
+        Evaluator { spec, dir: dir.to_path_buf(), data: Mutex::new(HashMap::new()) }
+    }
+
+    /// The resolved spec.
+    pub fn spec(&self) -> &Spec {
+        &self.spec
+    }
+
+    /// Search dataset `d`, laid out for the search's action encoding (collected on first use).
+    pub fn dataset(&self, d: usize) -> Result<Arc<(Dataset, Encoded)>> {
+        if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
+            return Ok(x.clone());
+        }
+        let env = self.spec.env.env();
+        let s = &self.spec.search;
+        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, "search", d))?;
+        let enc = Encoded::new(&data, env.actions(), s.actions)?;
+        let x = Arc::new((data, enc));
+        self.data.lock().expect("dataset cache").insert(d, x.clone());
+        Ok(x)
+    }
+
+    /// The network a setting stands for.
+    pub fn network(&self, s: &Decoded) -> MlpParams {
+        MlpParams {
+            activation: s.activation,
+            delta_min: s.delta_min,
+            patience: s.patience,
+            ..self.spec.search.network.clone()
+        }
+    }
+
+    /// Runs FQI for setting `s` on search dataset `d`: a pure function of (spec, s, d). The networks'
+    /// seeds derive from `(seed, "init", [activation, δ_min bits, patience, d])`.
+    pub fn evaluate(&self, s: &Decoded, d: usize) -> Result<UnitResult> {
+        let t = Instant::now();
+        let x = self.dataset(d)?;
+        let (data, enc) = (&x.0, &x.1);
+        let search = &self.spec.search;
+        let params = self.network(s);
+        // Only the last iteration's score counts for fitness.
+        let settings =
+            FqiSettings { algorithm: search.algorithm, iterations: search.iterations, eval_every: search.iterations };
+        let idx = [activation_code(s.activation), s.delta_min.to_bits(), s.patience as u64, d as u64];
+        let fit_seed = rng::derive(self.spec.seed, "init", &idx);
+        let eval_seed = rng::derive(self.spec.seed, "eval/search", &[d as u64]);
+        let rec = Fqi::new(self.spec.env.env(), data, enc, &params, settings, fit_seed, eval_seed).run(|_| {})?;
+        let last = rec.iterations.last();
+        Ok(UnitResult {
+            setting: *s,
+            dataset: d,
+            score: rec.final_score(),
+            steps: if rec.diverged.is_some() { None } else { last.and_then(|r| r.steps) },
+            diverged: rec.diverged.clone(),
+            epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
+            seconds: t.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Where a unit's result is stored.
+    pub fn unit_path(&self, id: &str) -> PathBuf {
+        self.dir.join("units").join(format!("{id}.json"))
+    }
+
+    /// Computes a unit and stores it atomically.
+    pub fn run_unit(&self, id: &str) -> Result<()> {
+        let (s, d) = parse_unit_id(id)
+            .ok_or_else(|| Error::invalid("unit", id, "must look like sigmoid_5.8e-1_601.d3 (setting.dataset)"))?;
+        let r = self.evaluate(&s, d)?;
+        if let Some(div) = &r.diverged {
+            eprintln!("note: unit {id} diverged at iteration {} ({}): fitness −∞", div.iteration, div.reason);
+        }
+        write_json(&self.unit_path(id), &r)
+    }
+
+    /// Reads a stored unit, if present and whole.
+    pub fn load_unit(&self, id: &str) -> Option<UnitResult> {
+        read_json(&self.unit_path(id)).ok()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ga::chromosome::{GeneRanges, decode};
+
+    #[test]
+    fn unit_ids_round_trip_exactly() {
+        let r = GeneRanges::default();
+        for (c, d) in [([0, 58, 2, 60, 2], 3), ([2, 10, 8, 99, 0], 11), ([1, 99, 8, 10, 1], 0)] {
+            let s = decode(&c, &r);
+            let (back, bd) = parse_unit_id(&unit_id(&s, d)).unwrap();
+            assert_eq!(
+                (back.activation, back.delta_min.to_bits(), back.patience, bd),
+                (s.activation, s.delta_min.to_bits(), s.patience, d)
+            );
+        }
+        assert_eq!(unit_id(&decode(&[0, 58, 2, 60, 2], &r), 3), "sigmoid_5.8e-1_601.d3");
+        for bad in ["junk", "sigmoid_0.5.d1", "swish_0.5_3.d1", "relu_0.5_3_4.d1", "relu_NaN_3.d1", "relu_0.5_3.dx"] {
+            assert_eq!(parse_unit_id(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn settings_that_decode_alike_share_an_id() {
+        let r = GeneRanges::default();
+        // b_p = 0: a_p 40..49 all give patience 5.
+        let ids: Vec<String> = (40..50).map(|a_p| unit_id(&decode(&[0, 60, 3, a_p, 0], &r), 0)).collect();
+        assert!(ids.iter().all(|i| *i == ids[0]), "{ids:?}");
+        assert_ne!(ids[0], unit_id(&decode(&[0, 60, 3, 50, 0], &r), 0));
+    }
+
+    #[test]
+    fn expected_cost_orders_slow_settings_first() {
+        let slow = Decoded { activation: Activation::Sigmoid, delta_min: 1e-8, patience: 991 };
+        let thesis = Decoded { activation: Activation::Sigmoid, delta_min: 0.011, patience: 75 };
+        let fast = Decoded { activation: Activation::Relu, delta_min: 0.9, patience: 2 };
+        let c = |s: &Decoded| expected_cost(s, 5000);
+        assert!(c(&slow) > c(&thesis) && c(&thesis) > c(&fast));
+        assert_eq!(c(&slow), 5000.0, "capped at the epoch cap");
+    }
+}
