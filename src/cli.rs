@@ -345,13 +345,17 @@ pub struct BenchArgs {
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// A Python with scikit-learn (and keras + jax) to run the reference scripts side by side
-    /// (`fqi`: scikit-learn only, with the FQI script built into the binary).
+    /// A Python to run the reference side by side (`learners`: scikit-learn, keras and jax;
+    /// `fqi`: scikit-learn; `search`: keras and jax). The scripts are built into the binary.
     #[arg(long)]
     pub python: Option<PathBuf>,
-    /// Folder of the reference scripts (sklearn_et.py, keras_mlp.py).
-    #[arg(long, default_value = "../shared/bench")]
-    pub reference_dir: PathBuf,
+    /// `search`: one environment name or spec file (default: all three, at their default specs).
+    #[arg(long)]
+    pub env: Option<String>,
+    /// `search`: seconds after which a timed unit stops (after its FQI iteration under way); the
+    /// unit's time is then projected from the iterations it ran.
+    #[arg(long, default_value_t = 20.0)]
+    pub cap_seconds: f64,
 }
 
 /// `bfqi-ga envs`.
@@ -539,12 +543,21 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
 
 fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
     let figures = match a.what.as_str() {
-        "learners" => {
-            let reference =
-                crate::bench::PythonReference { python: a.python.clone(), scripts: a.reference_dir.clone() };
-            crate::bench::learners(&reference, a.json)?
+        "learners" => crate::bench::learners(a.python.as_deref(), a.json)?,
+        "search" => {
+            anyhow::ensure!(
+                a.cap_seconds.is_finite() && a.cap_seconds > 0.0,
+                "invalid --cap-seconds = {}: must be > 0",
+                a.cap_seconds
+            );
+            let opts = crate::bench::SearchBench {
+                env: a.env.clone(),
+                python: a.python.clone(),
+                cap_seconds: a.cap_seconds,
+                json: a.json,
+            };
+            crate::bench::search(&opts)?
         }
-        "search" => crate::bench::search(a.json)?,
         _ => crate::bench::fqi(a.python.as_deref(), a.json)?,
     };
     if a.json {
@@ -665,15 +678,28 @@ fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
                 b.patience
             )
         });
+        let timing = if st.state == "running" || st.units_total > 0 {
+            let human = crate::progress::human;
+            format!(
+                "  units {}/{} · ran {} · ETA {}",
+                st.units_done,
+                st.units_total,
+                human(st.elapsed()),
+                if state == "running" { st.eta_seconds.map_or("?".into(), human) } else { "— (resume it)".into() }
+            )
+        } else {
+            format!("  ran {}", crate::progress::human(st.elapsed()))
+        };
         println!(
-            "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}  {}  {}",
+            "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}  {}  {}{}",
             env,
             state,
             st.generation,
             st.generations,
             st.best_fitness.map_or("—".into(), |f| format!("{f:.4}")),
             best,
-            d.display()
+            d.display(),
+            timing
         );
     }
     Ok(ExitCode::SUCCESS)

@@ -140,21 +140,30 @@ impl Evaluator {
         }
     }
 
-    /// Runs FQI for setting `s` on search dataset `d`: a pure function of (spec, s, d). The networks'
-    /// seeds derive from `(seed, "init", [activation, δ_min bits, patience, d])`.
+    /// The FQI settings of a unit: the search's K, evaluated after the last iteration only (only
+    /// its score counts for fitness).
+    pub fn fqi_settings(&self) -> FqiSettings {
+        let search = &self.spec.search;
+        FqiSettings { algorithm: search.algorithm, iterations: search.iterations, eval_every: search.iterations }
+    }
+
+    /// The seeds of setting `s` on dataset `d`: the networks' from
+    /// `(seed, "init", [activation, δ_min bits, patience, d])`, the evaluation's from
+    /// `(seed, "eval/search", [d])`.
+    pub fn seeds(&self, s: &Decoded, d: usize) -> (u64, u64) {
+        let idx = [activation_code(s.activation), s.delta_min.to_bits(), s.patience as u64, d as u64];
+        (rng::derive(self.spec.seed, "init", &idx), rng::derive(self.spec.seed, "eval/search", &[d as u64]))
+    }
+
+    /// Runs FQI for setting `s` on search dataset `d`: a pure function of (spec, s, d).
     pub fn evaluate(&self, s: &Decoded, d: usize) -> Result<UnitResult> {
         let t = Instant::now();
         let x = self.dataset(d)?;
         let (data, enc) = (&x.0, &x.1);
-        let search = &self.spec.search;
         let params = self.network(s);
-        // Only the last iteration's score counts for fitness.
-        let settings =
-            FqiSettings { algorithm: search.algorithm, iterations: search.iterations, eval_every: search.iterations };
-        let idx = [activation_code(s.activation), s.delta_min.to_bits(), s.patience as u64, d as u64];
-        let fit_seed = rng::derive(self.spec.seed, "init", &idx);
-        let eval_seed = rng::derive(self.spec.seed, "eval/search", &[d as u64]);
-        let rec = Fqi::new(self.spec.env.env(), data, enc, &params, settings, fit_seed, eval_seed).run(|_| {})?;
+        let (fit_seed, eval_seed) = self.seeds(s, d);
+        let fqi = Fqi::new(self.spec.env.env(), data, enc, &params, self.fqi_settings(), fit_seed, eval_seed);
+        let rec = fqi.run(|_| {})?;
         let last = rec.iterations.last();
         Ok(UnitResult {
             setting: *s,

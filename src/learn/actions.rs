@@ -129,6 +129,26 @@ impl Encoded {
         }
     }
 
+    /// Models per Q-function member: one with `input`, one per action with `per_action`.
+    pub fn n_models(&self) -> usize {
+        match self.encoding {
+            ActionEncoding::Input => 1,
+            ActionEncoding::PerAction => self.actions.len(),
+        }
+    }
+
+    /// Model `j`'s training rows (row-major, [`Encoded::n_inputs`] values each), in the order it
+    /// is fitted on them, and the transition each row comes from.
+    pub fn model_rows(&self, j: usize) -> (&[f64], Vec<usize>) {
+        match self.encoding {
+            ActionEncoding::Input => (&self.train, (0..self.n).collect()),
+            ActionEncoding::PerAction => {
+                let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
+                (&self.train[lo * self.obs_dim..hi * self.obs_dim], self.train_index[lo..hi].to_vec())
+            }
+        }
+    }
+
     /// Number of input features of each model.
     pub fn n_inputs(&self) -> usize {
         match self.encoding {

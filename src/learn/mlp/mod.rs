@@ -298,6 +298,67 @@ pub fn kernel_isa() -> &'static str {
     Isa::detect().name()
 }
 
+/// This core's FP32 peak in GFLOP/s on the kernels' build (independent FMA chains; an FMA is 2
+/// FLOPs per lane), the best of short runs over about `seconds`.
+pub fn fma_peak_gflops(seconds: f64) -> f64 {
+    lanes::fma_peak_gflops(Isa::detect(), seconds)
+}
+
+/// The arithmetic of one training epoch of a network, as the kernels execute it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EpochWork {
+    /// 2 per multiply-add of the forward pass (every row, training and validation) and of the
+    /// backward pass (training rows: the weight gradients of every layer and the deltas of every
+    /// layer but the input's).
+    pub matmul_flops: f64,
+    /// The activations, per hidden unit and row (forward on every row, derivative on training
+    /// rows), counted as the operations our kernels run with an FMA as 2 FLOPs: sigmoid 40 + 3,
+    /// tanh 36 + 3, ReLU 1 + 1.
+    pub activation_flops: f64,
+    /// The same activations as vector-lane operations (an FMA as 1): sigmoid 24 + 3, tanh 21 + 3,
+    /// ReLU 1 + 1. With the multiply-adds, what bounds an epoch at two vector operations per cycle.
+    pub activation_ops: f64,
+}
+
+impl EpochWork {
+    /// The work of an epoch of `shape` over `train_rows` + `val_rows` rows.
+    pub fn new(shape: &Shape, train_rows: usize, val_rows: usize) -> EpochWork {
+        let w = shape.widths();
+        let forward: usize = w.windows(2).map(|p| p[0] * p[1]).sum();
+        let deltas: usize = w.windows(2).skip(1).map(|p| p[0] * p[1]).sum();
+        let (t, v) = (train_rows as f64, val_rows as f64);
+        let units = w[1..w.len() - 1].iter().sum::<usize>() as f64;
+        let ((ff, bf), (fo, bo)) = match shape.activation() {
+            Activation::Sigmoid => ((40.0, 3.0), (24.0, 3.0)),
+            Activation::Tanh => ((36.0, 3.0), (21.0, 3.0)),
+            Activation::Relu => ((1.0, 1.0), (1.0, 1.0)),
+        };
+        EpochWork {
+            matmul_flops: 2.0 * (forward as f64 * (t + v) + (forward + deltas) as f64 * t),
+            activation_flops: units * (ff * (t + v) + bf * t),
+            activation_ops: units * (fo * (t + v) + bo * t),
+        }
+    }
+
+    /// All FLOPs.
+    pub fn flops(&self) -> f64 {
+        self.matmul_flops + self.activation_flops
+    }
+
+    /// Seconds the epoch needs at least on a core whose FMA peak is `peak_gflops`: every
+    /// multiply-add and activation operation takes one of the core's vector-lane slots, of which
+    /// it has peak / 2 per second.
+    pub fn bound_seconds(&self, peak_gflops: f64) -> f64 {
+        (self.matmul_flops / 2.0 + self.activation_ops) / (peak_gflops * 1e9 / 2.0)
+    }
+}
+
+/// Rows a fit of `n` rows trains on, and validates on (the last `validation_fraction`).
+pub fn split_rows(n: usize, validation_fraction: f64) -> (usize, usize) {
+    let s = split_point(n, validation_fraction);
+    (s, n - s)
+}
+
 /// Blocks of 16 units that [`Mlp::predict_row`] evaluates on the stack (layers up to 64 wide).
 const STACK_BLOCKS: usize = 4;
 
