@@ -3,10 +3,10 @@
 //! Every thread of the pool takes the next unit from one queue, in the order given (longest
 //! expected first), so the last units of a generation are short ones. Units are not rayon tasks:
 //! a thread waiting inside a unit (for the per-action fits it split off, say) can only steal such
-//! inner work, never a whole other unit, and when the queue runs dry the idle threads help the
-//! units still running (see [`crate::exec::idle_threads`]).
+//! inner work, never a whole other unit, and when the queue runs dry the idle threads take the
+//! per-action fits of the units still running.
 
-use super::{Executor, RunningUnit};
+use super::Executor;
 use crate::error::Result;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -34,11 +34,7 @@ impl Executor for Local {
                             return;
                         }
                         let Some(id) = ids.get(next.fetch_add(1, Ordering::SeqCst)) else { return };
-                        let result = {
-                            let _running = RunningUnit::start();
-                            work(id)
-                        };
-                        match result {
+                        match work(id) {
                             Ok(()) => done(id),
                             Err(e) => {
                                 first_error.lock().expect("error slot").get_or_insert(e);

@@ -26,56 +26,6 @@ pub trait Executor: Sync {
 
 use crate::error::Error;
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-
-/// Units running on this process's threads (see [`idle_threads`]).
-static RUNNING: AtomicUsize = AtomicUsize::new(0);
-/// Threads of this process busy with a share of a running unit (a helper in a network's team).
-static HELPING: AtomicUsize = AtomicUsize::new(0);
-
-/// Marks a unit as running on the current thread until dropped.
-pub struct RunningUnit(());
-
-impl RunningUnit {
-    /// Counts a unit as running.
-    pub fn start() -> RunningUnit {
-        RUNNING.fetch_add(1, Ordering::SeqCst);
-        RunningUnit(())
-    }
-}
-
-impl Drop for RunningUnit {
-    fn drop(&mut self) {
-        RUNNING.fetch_sub(1, Ordering::SeqCst);
-    }
-}
-
-/// Marks the current thread as helping a running unit until dropped.
-pub struct Helping(());
-
-impl Helping {
-    /// Counts the current thread as a helper.
-    pub fn start() -> Helping {
-        HELPING.fetch_add(1, Ordering::SeqCst);
-        Helping(())
-    }
-}
-
-impl Drop for Helping {
-    fn drop(&mut self) {
-        HELPING.fetch_sub(1, Ordering::SeqCst);
-    }
-}
-
-/// Threads of the pool with no unit of their own and no share of another's: when a generation's
-/// queue runs dry, these can take part of the units still running (their networks' batches).
-/// A hint, read without locks: it changes only what runs where, never a result.
-pub fn idle_threads() -> usize {
-    // A process that runs no executor (a Slurm worker, `run`, a test) counts its one job as the
-    // unit in flight.
-    let running = RUNNING.load(Ordering::SeqCst).max(1);
-    rayon::current_num_threads().saturating_sub(running + HELPING.load(Ordering::SeqCst))
-}
 
 /// Builds the executor of a run directory (the Slurm executor needs to know it).
 pub type ExecutorFactory<'a> = dyn Fn(&Path) -> Result<Box<dyn Executor>> + 'a;
