@@ -206,3 +206,137 @@ fn malformed_specs_give_exit_2_and_a_one_line_message() {
         assert_eq!(err.trim().lines().count(), 1, "{name}: {err}");
     }
 }
+
+/// The cart-pole spec with `edit` applied, written to `dir/name.json`.
+fn spec_file(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let mut v: serde_json::Value = serde_json::from_str(&read(PathBuf::from("searches/cartpole.json"))).unwrap();
+    edit(&mut v);
+    let p = dir.join(format!("{name}.json"));
+    std::fs::write(&p, v.to_string()).unwrap();
+    p
+}
+
+fn search_spec(spec: &Path, dir: &Path, extra: &[&str]) -> Output {
+    bin()
+        .args(["search", spec.to_str().unwrap(), "--out", dir.to_str().unwrap()])
+        .args(args_with(extra))
+        .output()
+        .unwrap()
+}
+
+fn generations(dir: &Path) -> Vec<serde_json::Value> {
+    read(dir.join("generations.jsonl")).lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+}
+
+#[test]
+fn chromosomes_that_decode_alike_share_one_evaluation() {
+    // b_p = 0 with a_p in 10..=19: every patience is 2; one activation and one δ_min. Four
+    // different chromosomes, one setting.
+    let base = tmp("alike");
+    let spec = spec_file(&base, "alike", |v| {
+        v["search"]["genes"] = serde_json::json!({
+            "activations": ["tanh"], "a_delta": [10, 10], "b_delta": [2, 2], "a_patience": [10, 19], "b_patience": [0, 0]
+        });
+    });
+    let dir = base.join("run");
+    let o = search_spec(&spec, &dir, &["--generations", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g = &generations(&dir)[0];
+    let ind = g["individuals"].as_array().unwrap();
+    let genes: std::collections::HashSet<String> = ind.iter().map(|i| i["genes"].to_string()).collect();
+    assert!(genes.len() >= 2, "the test needs chromosomes that differ: {genes:?}");
+    assert!(ind.iter().all(|i| i["setting"] == "tanh_1e-1_2" && i["fitness"] == ind[0]["fitness"]));
+    for (k, i) in ind.iter().enumerate() {
+        let others: Vec<u64> = (0..ind.len() as u64).filter(|&j| j != k as u64).collect();
+        assert_eq!(i["shares_with"], serde_json::json!(others), "individual {k} records its sharers");
+    }
+    // One evaluation: a unit per dataset, counted as such.
+    assert_eq!(g["new_units"], 2);
+    let units: Vec<String> = std::fs::read_dir(dir.join("units"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(units.len(), 2, "{units:?}");
+}
+
+#[test]
+fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
+    let base = tmp("prune");
+    // Pruning on with a margin no score can fall below: the rounds path must select, keep elites
+    // and pick the best exactly as the unpruned search.
+    let never = spec_file(&base, "never", |v| {
+        v["search"]["prune"] = serde_json::json!({"enabled": true, "margin": 1e9, "min_datasets": 1});
+    });
+    let off = spec_file(&base, "off", |_| {});
+    let extra = ["--datasets", "3", "--generations", "3", "--population", "6"];
+    let (a, b) = (base.join("off-run"), base.join("never-run"));
+    for (spec, dir) in [(&off, &a), (&never, &b)] {
+        let o = search_spec(spec, dir, &extra);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let (ga, gb) = (generations(&a), generations(&b));
+    assert_eq!(ga.len(), gb.len());
+    for (x, y) in ga.iter().zip(&gb) {
+        assert_eq!(x["individuals"], y["individuals"], "generation {}", x["generation"]);
+        assert_eq!(x["stats"], y["stats"]);
+    }
+    assert!(gb[1]["prune_below"].is_number() && ga[1].get("prune_below").is_none());
+    let best = |d: &Path| {
+        let mut v: serde_json::Value = serde_json::from_str(&read(d.join("best.json"))).unwrap();
+        v.as_object_mut().unwrap().retain(|k, _| k != "spec" && k != "spec_hash");
+        v
+    };
+    assert_eq!(best(&a), best(&b));
+
+    // A margin of 0 with one dataset: individuals below the parent-pool line stop after one
+    // dataset, are recorded as pruned with their partial scores, and are never elites or parents.
+    let eager = spec_file(&base, "eager", |v| {
+        v["search"]["prune"] = serde_json::json!({"enabled": true, "margin": 0.0, "min_datasets": 1});
+    });
+    let c = base.join("eager-run");
+    let o = search_spec(&eager, &c, &["--datasets", "3", "--generations", "4", "--population", "8", "--seed", "3"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gc = generations(&c);
+    let mut pruned_seen = 0;
+    for (g, next) in gc.iter().zip(gc.iter().skip(1)) {
+        let ind = g["individuals"].as_array().unwrap();
+        let pruned: Vec<&serde_json::Value> = ind.iter().filter(|i| i["pruned"] == true).collect();
+        assert_eq!(g["stats"]["pruned"].as_u64().unwrap() as usize, pruned.len());
+        for p in &pruned {
+            pruned_seen += 1;
+            assert!(p["fitness"].is_null());
+            let n = p["scores"].as_array().unwrap().len();
+            assert!((1..3).contains(&n), "partial scores: {p}");
+            // Never an elite of the next generation.
+            let elites: Vec<&serde_json::Value> =
+                next["individuals"].as_array().unwrap().iter().filter(|i| i["origin"] == "elite").collect();
+            assert!(elites.iter().all(|e| e["setting"] != p["setting"]), "pruned {} became an elite", p["setting"]);
+        }
+    }
+    assert!(pruned_seen > 0, "the eager rule pruned nobody; the test needs a seed that prunes");
+    let st = bin().arg("status").arg(&c).output().unwrap();
+    assert!(String::from_utf8_lossy(&st.stdout).contains("finished"));
+
+    // Stopped again and again by a tiny time budget, in the middle of rounds, and resumed: the
+    // same pruning decisions and the same search.
+    let d = base.join("eager-resumed");
+    let eager_args =
+        ["--datasets", "3", "--generations", "4", "--population", "8", "--seed", "3", "--max-hours", "0.00005"];
+    let o = search_spec(&eager, &d, &eager_args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut stops = 0;
+    while !read(d.join("state.json")).contains("\"finished\"") {
+        stops += 1;
+        assert!(stops < 500, "never finished");
+        let o = bin()
+            .args(["search", "--resume", d.to_str().unwrap(), "--quiet", "--max-hours", "0.00005"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert!(stops > 0, "the budget never stopped it; the test needs a smaller budget");
+    for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
+        assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
+    }
+}

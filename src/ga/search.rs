@@ -709,7 +709,11 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
                         break;
                     }
                     open.retain(|x| {
-                        let sc = stored_scores(&ev, x, r + 1);
+                        // Every score stored so far: a setting scored in full before is judged by
+                        // its fitness, never pruned; one scored further in an earlier generation
+                        // (or before an interruption) is judged on all it has, which gives the
+                        // verdict the rounds would reach (they stop at the first mean below).
+                        let sc = stored_scores(&ev, x, s.datasets);
                         match prune::decide(&sc, s.datasets, &s.prune, cutoff) {
                             prune::Verdict::Open => true,
                             prune::Verdict::Pruned => {
@@ -753,7 +757,11 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         }
         let fit: Vec<f64> = individuals.iter().map(IndividualRecord::rank_fitness).collect();
         let eligible: Vec<bool> = individuals.iter().map(|r| !r.pruned).collect();
-        let order: Vec<usize> = rank(&fit).into_iter().filter(|&i| eligible[i]).collect();
+        let mut order: Vec<usize> = rank(&fit).into_iter().filter(|&i| eligible[i]).collect();
+        if order.is_empty() {
+            // Everyone pruned (possible only without elites): rank them all, as −∞.
+            order = rank(&fit);
+        }
         let top = &individuals[order[0]];
         let improved = match &best {
             None => true,

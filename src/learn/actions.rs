@@ -381,6 +381,24 @@ mod tests {
     }
 
     #[test]
+    fn per_action_networks_fit_in_parallel_give_the_same_bits() {
+        use crate::learn::mlp::MlpParams;
+        let c = EnvConfig::by_name("cartpole").unwrap();
+        let d = dataset::collect(c.env(), 40, 3).unwrap();
+        let enc = Encoded::new(&d, c.env().actions(), ActionEncoding::PerAction).unwrap();
+        let p = MlpParams { hidden: vec![6], max_epochs: 30, patience: 3, delta_min: 1e-4, ..Default::default() };
+        let fit = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let (mut train, mut next) = (vec![0.0; d.len()], vec![0.0; d.len() * enc.actions.len()]);
+            let (_, info, _) = pool.install(|| enc.fit_predict_next(&p, &d.reward, 5, &mut train, &mut next)).unwrap();
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            (bits(&train), bits(&next), info.epochs)
+        };
+        assert_eq!(fit(1), fit(2));
+        assert_eq!(fit(1), fit(3));
+    }
+
+    #[test]
     fn argmax_ties_go_first() {
         assert_eq!(argmax(&[1.0, 1.0, 0.5]), 0);
         assert_eq!(argmax(&[0.0, 2.0, 2.0]), 1);
