@@ -340,3 +340,49 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
         assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
     }
 }
+
+#[test]
+fn children_record_their_birth_and_follow_the_ga_rules() {
+    // Population 6 (1 elite, a parent pool of 3), 3 generations: every child's parents, crossed
+    // genes and mutation flag are in generations.jsonl, and the rules of Appendix C can be checked
+    // from the records alone.
+    let dir = tmp("births");
+    let o = search(&dir, &["--population", "6", "--generations", "3", "--jobs", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gens = generations(&dir);
+    assert_eq!(gens.len(), 3);
+    assert!(gens.iter().enumerate().all(|(g, r)| r["generation"] == g as u64), "generations count from 0");
+    let genes = |i: &serde_json::Value| -> Vec<i64> {
+        i["genes"].as_array().unwrap().iter().map(|v| v.as_i64().unwrap()).collect()
+    };
+    for w in gens.windows(2) {
+        let (prev, next) = (w[0]["individuals"].as_array().unwrap(), w[1]["individuals"].as_array().unwrap());
+        // The ranking the GA used: fitness (−∞ for none) descending, ties by position.
+        let fit = |i: &serde_json::Value| i["fitness"].as_f64().unwrap_or(f64::NEG_INFINITY);
+        let mut order: Vec<usize> = (0..prev.len()).collect();
+        order.sort_by(|&a, &b| fit(&prev[b]).total_cmp(&fit(&prev[a])).then(a.cmp(&b)));
+        assert_eq!(next[0]["origin"], "elite");
+        assert!(next[0]["birth"].is_null());
+        assert_eq!(genes(&next[0]), genes(&prev[order[0]]), "the elite is the best, unchanged");
+        let pool = &order[..3];
+        let children: Vec<&serde_json::Value> = next.iter().filter(|i| i["origin"] == "child").collect();
+        assert_eq!(children.len(), 5);
+        for c in children {
+            let b = &c["birth"];
+            let parents: Vec<usize> =
+                b["parents"].as_array().unwrap().iter().map(|p| p.as_u64().unwrap() as usize).collect();
+            assert!(parents.iter().all(|p| pool.contains(p)), "parents {parents:?} outside the pool {pool:?}");
+            let crossed: Vec<i64> = b["crossed"].as_array().unwrap().iter().map(|v| v.as_i64().unwrap()).collect();
+            let (p1, p2) = (genes(&prev[parents[0]]), genes(&prev[parents[1]]));
+            for g in 0..crossed.len() {
+                assert!(
+                    p1[g].min(p2[g]) <= crossed[g] && crossed[g] <= p1[g].max(p2[g]),
+                    "gene {g} outside its parents"
+                );
+            }
+            if b["mutated"] == false {
+                assert_eq!(genes(c), crossed, "an unmutated child is its crossover");
+            }
+        }
+    }
+}

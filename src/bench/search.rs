@@ -433,7 +433,7 @@ pub fn search(opts: &SearchBench) -> Result<Value> {
         };
 
         // The first generation, as the search draws it.
-        let population = initial_population(spec.seed, &s.genes, s.ga.population);
+        let population = initial_population(crate::ga::search::ga_seed(&spec), &s.genes, s.ga.population);
         let mut distinct: Vec<Decoded> = Vec::new();
         for c in &population {
             let d = decode(c, &s.genes);
@@ -464,7 +464,7 @@ pub fn search(opts: &SearchBench) -> Result<Value> {
         let children = s.ga.population - s.ga.n_elites();
         let g = s.stop.generations as f64;
         let projection = Projection {
-            method: "the first generation's chromosomes (drawn from the spec's seed); each distinct setting's unit on dataset 0 timed on one thread (stopped after the iteration passing the cap, then projected from its iterations) and assumed to cost as much on every dataset; units scheduled longest first on the pool's threads",
+            method: "the first generation's chromosomes (drawn as the search draws them); each distinct setting's unit on dataset 0 timed on one thread (stopped after the iteration passing the cap, then projected from its iterations) and assumed to cost as much on every dataset; units scheduled longest first on the pool's threads",
             threads,
             population: s.ga.population,
             distinct_settings: distinct.len(),

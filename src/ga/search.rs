@@ -12,7 +12,7 @@
 //! read, not retrained, so resuming is just running again.
 
 use super::chromosome::{Chromosome, Decoded, decode};
-use super::operators::{initial_population, next_generation, rank};
+use super::operators::{Birth, initial_population, next_generation, rank};
 use super::prune;
 pub use super::units::{Evaluator, UnitResult, parse_unit_id, unit_id};
 use super::units::{activation_name, expected_cost, setting_id};
@@ -90,6 +90,10 @@ pub struct IndividualRecord {
     pub pruned: bool,
     /// How it came about: `initial`, `elite` or `child`.
     pub origin: String,
+    /// A child's parents (their positions in the previous generation), its genes after the
+    /// interval crossover and before mutation, and whether it was mutated (thesis Appendix C).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub birth: Option<Birth>,
 }
 
 impl IndividualRecord {
@@ -336,7 +340,14 @@ fn stored_scores(ev: &Evaluator, s: &Decoded, n: usize) -> Vec<Option<f64>> {
 }
 
 /// The record of individual `index`, from the stored scores of its setting.
-fn record_for(index: usize, c: &Chromosome, ev: &Evaluator, origin: &str, pruned: bool) -> Result<IndividualRecord> {
+fn record_for(
+    index: usize,
+    c: &Chromosome,
+    ev: &Evaluator,
+    origin: &str,
+    birth: Option<Birth>,
+    pruned: bool,
+) -> Result<IndividualRecord> {
     let s = &ev.spec().search;
     let decoded = decode(c, &s.genes);
     let scores = stored_scores(ev, &decoded, s.datasets);
@@ -356,6 +367,7 @@ fn record_for(index: usize, c: &Chromosome, ev: &Evaluator, origin: &str, pruned
         fitness: finite(f),
         pruned,
         origin: origin.to_string(),
+        birth,
     })
 }
 
@@ -634,6 +646,13 @@ impl Runner<'_> {
     }
 }
 
+/// The seed of the GA's own streams (initial population, breeding): from the master seed and the
+/// environment, so searches of different environments with one master seed draw different
+/// populations.
+pub fn ga_seed(spec: &Spec) -> u64 {
+    crate::rng::derive(spec.seed, &format!("ga/{}", spec.env.env().name()), &[])
+}
+
 /// Runs (or resumes) the search in `dir`. Unit results already stored are reused.
 pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
     let spec = load_spec(dir)?;
@@ -657,8 +676,10 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         clock: Mutex::new(Clock::resume(dir)),
     };
 
-    let mut population = initial_population(spec.seed, &s.genes, s.ga.population);
+    let seed = ga_seed(&spec);
+    let mut population = initial_population(seed, &s.genes, s.ga.population);
     let mut origins = vec!["initial"; population.len()];
+    let mut births: Vec<Option<Birth>> = vec![None; population.len()];
     let mut records: Vec<GenerationRecord> = Vec::new();
     let mut best: Option<(IndividualRecord, usize)> = None;
     let mut hall: Vec<(IndividualRecord, usize)> = Vec::new();
@@ -688,7 +709,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
                 distinct.push(*d);
             }
         }
-        progress.start_stage(&format!("gen {}", g + 1), 0);
+        progress.start_stage(&format!("gen {g}"), 0);
         let mut pruned: HashSet<String> = HashSet::new();
         let stopped = match prune_below.filter(|_| s.prune.enabled) {
             None => {
@@ -739,7 +760,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         let mut individuals: Vec<IndividualRecord> = population
             .iter()
             .enumerate()
-            .map(|(i, c)| record_for(i, c, &ev, origins[i], pruned.contains(&setting_id(&settings[i]))))
+            .map(|(i, c)| record_for(i, c, &ev, origins[i], births[i], pruned.contains(&setting_id(&settings[i]))))
             .collect::<Result<_>>()?;
         for i in 0..individuals.len() {
             let key = individuals[i].setting.clone();
@@ -816,7 +837,8 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         }
         progress.stage_done();
         progress.line(&format!(
-            "gen {}/{}: best {} mean {} ({} diverged{}) | {} units in {} ({}) | best so far {} → fitness {} (gen {}) | {}",
+            "gen {} ({} of {}): best {} mean {} ({} diverged{}) | {} units in {} ({}) | best so far {} → fitness {} (gen {}) | {}",
+            g,
             g + 1,
             s.stop.generations,
             fmt(st.max),
@@ -828,7 +850,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
             if secs > 0.0 && ran > 0 { format!("{:.2} units/s", ran as f64 / secs) } else { "nothing to run".into() },
             describe(&b.decoded),
             fmt(b.fitness),
-            bg + 1,
+            bg,
             human(progress.elapsed())
         ));
 
@@ -845,9 +867,10 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
             return Ok(Ending::Finished(reason));
         }
         if g + 1 < s.stop.generations {
-            let (next, _) = next_generation(spec.seed, g, &population, &fit, &eligible, &s.genes, &s.ga);
-            let elites = s.ga.n_elites().min(order.len());
+            let (next, born) = next_generation(seed, g, &population, &fit, &eligible, &s.genes, &s.ga);
+            let elites = next.len() - born.len();
             origins = (0..next.len()).map(|i| if i < elites { "elite" } else { "child" }).collect();
+            births = std::iter::repeat_n(None, elites).chain(born.into_iter().map(Some)).collect();
             population = next;
         }
     }
@@ -921,7 +944,7 @@ pub fn report(dir: &Path) -> Result<usize> {
     for r in &records {
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} |\n",
-            r.generation + 1,
+            r.generation,
             fmt(r.stats.max),
             fmt(r.stats.mean),
             r.stats.diverged,
@@ -938,7 +961,7 @@ fn fitness_rows(records: &[GenerationRecord]) -> Vec<FitnessRow> {
     records
         .iter()
         .map(|r| FitnessRow {
-            generation: r.generation + 1,
+            generation: r.generation,
             best: r.stats.max,
             mean: r.stats.mean,
             best_so_far: r.best_so_far.fitness,
@@ -1017,5 +1040,19 @@ mod tests {
     fn fitness_is_the_mean_or_minus_infinity() {
         assert_eq!(fitness(&[Some(1.0), Some(3.0)]), 2.0);
         assert_eq!(fitness(&[Some(1.0), None]), f64::NEG_INFINITY);
+    }
+
+    #[test]
+    fn each_environment_draws_its_own_initial_population() {
+        let pops: Vec<Vec<Chromosome>> = ["cartpole", "bicycle", "pendulum"]
+            .iter()
+            .map(|e| {
+                let spec = Spec::resolve(e).unwrap().0;
+                initial_population(ga_seed(&spec), &spec.search.genes, spec.search.ga.population)
+            })
+            .collect();
+        assert_ne!(pops[0], pops[1]);
+        assert_ne!(pops[0], pops[2]);
+        assert_ne!(pops[1], pops[2]);
     }
 }

@@ -202,7 +202,7 @@ pub fn lines_scaled(
 /// One generation's fitness figures (`None` = every individual diverged).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FitnessRow {
-    /// 1-based generation.
+    /// Generation (0-based, as in generations.jsonl and best.json).
     pub generation: usize,
     /// Best fitness of the generation.
     pub best: Option<f64>,
