@@ -323,7 +323,7 @@ pub fn prepare(
     let info = serde_json::json!({
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": analysis, "learner": learner,
-        "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"),
+        "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
     });
     create(&dir, &cfg, &info)?;
     Ok(dir)

@@ -48,6 +48,10 @@ pub struct RunInfo {
     pub created: String,
     /// bfqi-ga version that created it.
     pub version: String,
+    /// The source commit it was built from (`+dirty` with uncommitted changes; `unknown` when
+    /// built outside a git checkout).
+    #[serde(default)]
+    pub commit: String,
 }
 
 /// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.
@@ -300,6 +304,7 @@ pub fn prepare(
         overrides,
         created: store::now_utc().1,
         version: env!("CARGO_PKG_VERSION").into(),
+        commit: env!("BFQI_GA_COMMIT").into(),
     };
     create(&dir, &spec, &info)?;
     Ok(dir)

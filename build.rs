@@ -1,0 +1,27 @@
+//! Records the source commit the binary is built from (`BFQI_GA_COMMIT`), so run directories
+//! can say which code made them: `git rev-parse HEAD`, with `+dirty` when the work tree has
+//! uncommitted changes to tracked files, or `unknown` outside a git checkout.
+use std::process::Command;
+
+fn git(args: &[&str]) -> Option<String> {
+    let out = Command::new("git").args(args).output().ok()?;
+    out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
+}
+
+fn main() {
+    let commit = match git(&["rev-parse", "HEAD"]) {
+        Some(head) if !head.is_empty() => {
+            let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+            if dirty { format!("{head}+dirty") } else { head }
+        }
+        _ => "unknown".to_string(),
+    };
+    println!("cargo:rustc-env=BFQI_GA_COMMIT={commit}");
+    // Re-run when HEAD moves or the index changes (a commit, a checkout, staged edits).
+    for p in [".git/HEAD", ".git/index"] {
+        println!("cargo:rerun-if-changed={p}");
+    }
+    if let Some(r) = git(&["symbolic-ref", "-q", "HEAD"]) {
+        println!("cargo:rerun-if-changed=.git/{r}");
+    }
+}
