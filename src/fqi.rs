@@ -14,7 +14,7 @@ use crate::env::Env;
 use crate::error::Result;
 use crate::eval::{Score, evaluate};
 use crate::learn::actions::{Encoded, QModel, argmax};
-use crate::learn::{Learner, LearnerConfig, StopReason};
+use crate::learn::{FitInfo, Learner, LearnerConfig, StopReason};
 use crate::rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -53,6 +53,10 @@ pub struct IterationRecord {
     pub bellman_residual: f64,
     /// Epochs run by the member's networks (summed over per-action models); absent for trees.
     pub epochs: Option<usize>,
+    /// Each network of the member (one per action with `per_action`): epochs, why training
+    /// stopped (early stopping or the epoch cap) and the last epoch's losses; empty for trees.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub networks: Vec<FitInfo>,
     /// Seconds fitting the member.
     pub fit_seconds: f64,
     /// Seconds predicting the member on the training rows and next states.
@@ -237,8 +241,9 @@ impl<'a, L: Learner> Fqi<'a, L> {
         // leaf), so they count as fit time.
         // Q(x′, ·) of the member comes with it too (a tree gives a next state that is also a
         // training state that row's leaf), timed apart as prediction.
-        let (member, info, next_seconds) =
+        let (member, fits, next_seconds) =
             self.enc.fit_predict_next(self.learner, &self.fit_target, seed, &mut self.p_train, &mut self.p_next)?;
+        let info = FitInfo::combined(&fits);
         self.fits += 1;
         let fit_seconds = t0.elapsed().as_secs_f64() - next_seconds;
         if info.stop == StopReason::NonFinite {
@@ -284,13 +289,16 @@ impl<'a, L: Learner> Fqi<'a, L> {
         } else {
             (None, None)
         };
-        let epochs = (info.stop != StopReason::NotIterative).then_some(info.epochs);
+        let iterative = info.stop != StopReason::NotIterative;
+        let epochs = iterative.then_some(info.epochs);
+        let networks = if iterative { fits } else { Vec::new() };
         Ok(Ok(IterationRecord {
             iteration: k,
             score,
             steps,
             bellman_residual,
             epochs,
+            networks,
             fit_seconds,
             predict_seconds,
             eval_seconds: t2.elapsed().as_secs_f64(),
@@ -467,7 +475,7 @@ mod tests {
                 e.1 += 1.0;
             }
             let m = sums.into_iter().map(|(k, (s, n))| (k, s / n)).collect();
-            Ok((TableModel(m, x.n_cols()), FitInfo { epochs: 0, stop: StopReason::NotIterative }))
+            Ok((TableModel(m, x.n_cols()), FitInfo::NOT_ITERATIVE))
         }
     }
 

@@ -84,6 +84,27 @@ fn one_and_two_threads_give_identical_results_and_reproduce_confirms() {
     }
     let run: serde_json::Value = serde_json::from_str(&read(a.join("run.json"))).unwrap();
     assert_eq!(run["overrides"]["population"], 4, "overrides are recorded");
+    let commit = run["commit"].as_str().unwrap();
+    assert!(commit == "unknown" || commit.len() >= 40, "run.json records the source commit: {commit}");
+    // Each unit says, per FQI iteration and per action's network, how its training went.
+    for e in std::fs::read_dir(a.join("units")).unwrap() {
+        let u: serde_json::Value = serde_json::from_str(&read(e.unwrap().path())).unwrap();
+        let its = u["iterations"].as_array().unwrap();
+        assert_eq!(its.len(), 2, "K = 2: {u}");
+        let mut epochs = 0;
+        for it in its {
+            let nets = it["networks"].as_array().unwrap();
+            assert_eq!(nets.len(), 2, "cart-pole: one network per action");
+            for n in nets {
+                let stop = n["stop"].as_str().unwrap();
+                assert!(stop == "early_stopping" || stop == "max_epochs", "{stop}");
+                assert!(n["val_loss"].as_f64().unwrap().is_finite() && n["train_loss"].as_f64().unwrap().is_finite());
+                epochs += n["epochs"].as_u64().unwrap();
+            }
+            assert!(it["fit_seconds"].as_f64().unwrap() >= 0.0);
+        }
+        assert_eq!(u["epochs"].as_u64().unwrap(), epochs, "the unit's epochs are its networks' sum");
+    }
 
     let r = bin().arg("reproduce").arg(a.join("best.json")).output().unwrap();
     assert_eq!(r.status.code(), Some(0), "{}", String::from_utf8_lossy(&r.stdout));

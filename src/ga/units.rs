@@ -8,7 +8,7 @@
 use super::chromosome::Decoded;
 use crate::dataset::{self, Dataset, dataset_seed};
 use crate::error::{Error, Result};
-use crate::fqi::{Divergence, Fqi, FqiSettings};
+use crate::fqi::{Divergence, Fqi, FqiSettings, IterationRecord};
 use crate::learn::actions::Encoded;
 use crate::learn::mlp::{Activation, MlpParams};
 use crate::rng;
@@ -37,6 +37,10 @@ pub struct UnitResult {
     pub epochs: usize,
     /// Wall-clock seconds (not part of any comparison).
     pub seconds: f64,
+    /// Each FQI iteration run: its networks' epochs, why each stopped (early stopping or the epoch
+    /// cap) and their last losses, the Bellman residual, and its seconds.
+    #[serde(default)]
+    pub iterations: Vec<IterationRecord>,
 }
 
 /// The activation's name in unit ids and files.
@@ -173,6 +177,7 @@ impl Evaluator {
             diverged: rec.diverged.clone(),
             epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
             seconds: t.elapsed().as_secs_f64(),
+            iterations: rec.iterations,
         })
     }
 

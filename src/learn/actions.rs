@@ -7,7 +7,7 @@
 //! [`Encoded`] lays a dataset out once for an encoding (the training rows and every (next state,
 //! action) pair), so FQI's iterations only fit and predict.
 
-use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason};
+use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows};
 use crate::dataset::Dataset;
 use crate::error::{Error, Result};
 use crate::rng;
@@ -169,14 +169,14 @@ impl Encoded {
         seed: u64,
         out: &mut [f64],
         out_next: &mut [f64],
-    ) -> Result<(QModel<L::Model>, FitInfo, f64)> {
+    ) -> Result<(QModel<L::Model>, Vec<FitInfo>, f64)> {
         let states = Rows::new(&self.next, self.obs_dim)?;
         match self.encoding {
             ActionEncoding::Input => {
                 let next = NextStates { states, actions: Some(&self.actions), same: &self.twins };
                 let x = Rows::new(&self.train, self.n_inputs())?;
                 let (m, info, seconds) = learner.fit_predict_next(x, y, seed, out, &next, out_next)?;
-                Ok((QModel::Input(m), info, seconds))
+                Ok((QModel::Input(m), vec![info], seconds))
             }
             ActionEncoding::PerAction => {
                 let (na, n) = (self.actions.len(), self.n);
@@ -203,20 +203,16 @@ impl Encoded {
                     })
                     .collect::<Result<_>>()?;
                 let mut models = Vec::with_capacity(na);
-                let mut info = FitInfo { epochs: 0, stop: StopReason::NotIterative };
+                let mut infos = Vec::with_capacity(na);
                 let mut seconds = 0.0;
                 for (j, (m, fi, s, buf, next_buf)) in fits.into_iter().enumerate() {
                     self.put_action_rows(j, &buf, out);
                     self.put_action_column(j, &next_buf, out_next);
                     seconds += s;
-                    info.epochs += fi.epochs;
-                    // Any non-finite fit makes the member diverged; otherwise report the last reason.
-                    if info.stop != StopReason::NonFinite {
-                        info.stop = fi.stop;
-                    }
+                    infos.push(fi);
                     models.push(m);
                 }
-                Ok((QModel::PerAction(models), info, seconds))
+                Ok((QModel::PerAction(models), infos, seconds))
             }
         }
     }
@@ -390,9 +386,11 @@ mod tests {
         let fit = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
             let (mut train, mut next) = (vec![0.0; d.len()], vec![0.0; d.len() * enc.actions.len()]);
-            let (_, info, _) = pool.install(|| enc.fit_predict_next(&p, &d.reward, 5, &mut train, &mut next)).unwrap();
+            let (_, infos, _) = pool.install(|| enc.fit_predict_next(&p, &d.reward, 5, &mut train, &mut next)).unwrap();
             let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            (bits(&train), bits(&next), info.epochs)
+            let fits: Vec<_> = infos.iter().map(|i| (i.epochs, i.stop, i.val_loss.map(f64::to_bits))).collect();
+            assert_eq!(fits.len(), enc.actions.len(), "one fit record per action's network");
+            (bits(&train), bits(&next), fits)
         };
         assert_eq!(fit(1), fit(2));
         assert_eq!(fit(1), fit(3));

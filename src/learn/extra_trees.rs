@@ -24,7 +24,7 @@
 //! also a training state takes that row's leaf, recorded during the build, and walks only from the
 //! splits on the action above it.
 
-use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, StopReason, check_training_data};
+use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, check_training_data};
 use crate::error::{Error, Result, ensure};
 use crate::rng::{self, Rng};
 use rayon::prelude::*;
@@ -126,7 +126,7 @@ struct Routes {
 const NO_FORK: u32 = u32::MAX;
 
 /// What a tree fit reports (trees are not iterative).
-const TREE_FIT: FitInfo = FitInfo { epochs: 0, stop: StopReason::NotIterative };
+const TREE_FIT: FitInfo = FitInfo::NOT_ITERATIVE;
 
 /// What the trees record for each training row while they are built.
 #[derive(Debug, Clone, Copy)]

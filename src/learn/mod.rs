@@ -93,6 +93,34 @@ pub struct FitInfo {
     pub epochs: usize,
     /// Why it stopped.
     pub stop: StopReason,
+    /// Training loss of the last epoch run (networks; `None` for trees).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub train_loss: Option<f64>,
+    /// Validation loss of the last epoch run (networks; `None` for trees).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_loss: Option<f64>,
+}
+
+impl FitInfo {
+    /// A fit that is not iterative (trees).
+    pub const NOT_ITERATIVE: FitInfo =
+        FitInfo { epochs: 0, stop: StopReason::NotIterative, train_loss: None, val_loss: None };
+
+    /// What several models fitted as one member did: epochs summed; non-finite if any fit was,
+    /// else the last model's reason; no single loss.
+    pub fn combined(infos: &[FitInfo]) -> FitInfo {
+        let mut info = FitInfo::NOT_ITERATIVE;
+        for fi in infos {
+            info.epochs += fi.epochs;
+            if info.stop != StopReason::NonFinite {
+                info.stop = fi.stop;
+            }
+        }
+        if let [one] = infos {
+            (info.train_loss, info.val_loss) = (one.train_loss, one.val_loss);
+        }
+        info
+    }
 }
 
 /// A fitted regression model.

@@ -151,7 +151,7 @@ impl MlpParams {
         let mut rng = stream(seed, "mlp/shuffle", &[]);
         let mut perm = vec![0u32; split];
         let mut losses = Vec::with_capacity(self.max_epochs.min(10_000));
-        let mut info = FitInfo { epochs: 0, stop: StopReason::MaxEpochs };
+        let mut info = FitInfo { epochs: 0, stop: StopReason::MaxEpochs, train_loss: None, val_loss: None };
         for epoch in 1..=self.max_epochs {
             shuffle(&mut perm, &mut rng);
             let train_sse = net::epoch(isa, &shape, &mut params, &mut opt, &train, &perm, self.batch_size, &mut work);
@@ -159,6 +159,7 @@ impl MlpParams {
             let loss = EpochLoss { train: train_sse / split as f64, val: val_sse / (n - split) as f64 };
             losses.push(loss);
             info.epochs = epoch;
+            (info.train_loss, info.val_loss) = (Some(loss.train), Some(loss.val));
             if !loss.train.is_finite() || !loss.val.is_finite() || params.iter().any(|p| !p.is_finite()) {
                 info.stop = StopReason::NonFinite;
                 break;

@@ -344,13 +344,18 @@ fn epochs_and_stop_reason_are_recorded() {
     let (x, y) = data(400, 3, 5, smooth);
     let rows = Rows::new(&x, 3).unwrap();
     let (_, info, losses) = quick(vec![8], Activation::Tanh).fit_with_losses(rows, &y, 1).unwrap();
-    assert_eq!(info, FitInfo { epochs: 8, stop: StopReason::MaxEpochs });
+    assert_eq!((info.epochs, info.stop), (8, StopReason::MaxEpochs));
     assert_eq!(losses.len(), 8);
+    assert_eq!(
+        (info.train_loss, info.val_loss),
+        (Some(losses[7].train), Some(losses[7].val)),
+        "the last epoch's losses"
+    );
     assert!(losses[7].train < losses[0].train && losses[7].val < losses[0].val, "{losses:?}");
     // A huge δ: epoch 1 improves on +∞, the next `patience + 1` do not.
     let p = MlpParams { delta_min: 1e9, patience: 2, max_epochs: 100, ..quick(vec![8], Activation::Tanh) };
     let (_, info) = p.fit(rows, &y, 1).unwrap();
-    assert_eq!(info, FitInfo { epochs: 4, stop: StopReason::EarlyStopping });
+    assert_eq!((info.epochs, info.stop), (4, StopReason::EarlyStopping));
     // A learning rate that overflows the weights ends the fit as diverged, not in a panic.
     let p = MlpParams { learning_rate: 1e38, activation: Activation::Relu, ..quick(vec![8], Activation::Relu) };
     let (_, info) = p.fit(rows, &y, 1).unwrap();
