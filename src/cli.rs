@@ -38,6 +38,8 @@ pub enum Command {
     Run(Box<RunArgs>),
     /// Re-derive a tuned config's fitness from scratch and check it matches.
     Reproduce(ReproduceArgs),
+    /// Re-score a search's top settings and the thesis optimum on fresh validation datasets.
+    Validate(ValidateArgs),
     /// Run a plan of searches and comparisons (overnight batches).
     Batch(BatchArgs),
     /// One line per run under results/: state, generation, best fitness.
@@ -328,6 +330,22 @@ pub struct ReproduceArgs {
     pub best: PathBuf,
 }
 
+/// `bfqi-ga validate`.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// A search's run directory (at least one generation done).
+    pub dir: PathBuf,
+    /// Settings of the hall of fame to re-score (default: the spec's `search.validate.top`).
+    #[arg(long)]
+    pub top: Option<usize>,
+    /// Validation datasets (default: the spec's `search.validate.datasets`).
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// Suppress progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// `bfqi-ga status`.
 #[derive(Debug, Args)]
 pub struct StatusArgs {
@@ -385,6 +403,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Bench(a) => cmd_bench(a),
         Command::Search(a) => cmd_search(*a),
         Command::Reproduce(a) => cmd_reproduce(a),
+        Command::Validate(a) => cmd_validate(a),
         Command::Status(a) => cmd_status(a),
         Command::Compare(a) => cmd_compare(*a),
         Command::Report(a) => cmd_report(a),
@@ -644,6 +663,33 @@ fn cmd_reproduce(a: ReproduceArgs) -> Result<ExitCode> {
     }
 }
 
+fn cmd_validate(a: ValidateArgs) -> Result<ExitCode> {
+    use crate::ga::validate::{self, ValidateRule};
+    let spec = crate::ga::search::load_spec(&a.dir)?;
+    let rule = match (&spec.search.validate, a.top, a.datasets) {
+        (_, Some(top), Some(datasets)) => ValidateRule { top, datasets },
+        (Some(r), top, datasets) => {
+            ValidateRule { top: top.unwrap_or(r.top), datasets: datasets.unwrap_or(r.datasets) }
+        }
+        (None, _, _) => anyhow::bail!(
+            "{}: its spec has no search.validate; give both --top and --datasets (e.g. --top 5 --datasets 10)",
+            a.dir.join("spec.json").display()
+        ),
+    };
+    let v = validate::run(&a.dir, &rule, a.quiet)?;
+    crate::ga::search::report(&a.dir)?;
+    let ci = |s: &Option<crate::report::stats::Summary>| {
+        s.map_or("−∞ (diverged)".to_string(), |v| format!("{:.4} ± {:.4}", v.mean, v.ci95))
+    };
+    println!("{:<22} {:<24} {:>20} {:>20}", "", "setting", "search datasets", "validation");
+    for e in &v.entries {
+        let tag = if e.setting == v.tuned { format!("{} (tuned)", e.source) } else { e.source.clone() };
+        println!("{:<22} {:<24} {:>20} {:>20}", tag, e.setting, ci(&e.search), ci(&e.validation));
+    }
+    println!("{}", v.note);
+    Ok(ExitCode::SUCCESS)
+}
+
 fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
     let mut dirs = Vec::new();
     let mut stack = vec![a.dir.clone()];
@@ -690,13 +736,22 @@ fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
         } else {
             format!("  ran {}", crate::progress::human(st.elapsed()))
         };
+        // A validated winner shows its validation mean beside its fitness.
+        let validated = crate::ga::validate::load(&d)
+            .and_then(|v| v.entries.into_iter().find(|e| e.setting == v.tuned))
+            .map_or(String::new(), |e| {
+                e.validation.map_or(" (validation: diverged)".into(), |s| {
+                    format!(" (validation {:.4} ± {:.4} on {} datasets)", s.mean, s.ci95, s.n)
+                })
+            });
         println!(
-            "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}  {}  {}{}",
+            "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}",
             env,
             state,
             st.generation,
             st.generations,
             st.best_fitness.map_or("—".into(), |f| format!("{f:.4}")),
+            validated,
             best,
             d.display(),
             timing

@@ -139,6 +139,10 @@ pub struct SearchSpec {
     /// (beyond the thesis; off when absent).
     #[serde(default)]
     pub prune: crate::ga::prune::PruneRule,
+    /// After the last generation, re-score the hall of fame's top settings (and the thesis
+    /// optimum) on fresh validation datasets; none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validate: Option<crate::ga::validate::ValidateRule>,
 }
 
 impl SearchSpec {
@@ -164,7 +168,8 @@ impl SearchSpec {
         if let Some(s) = self.stop.stall_generations {
             ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
         }
-        self.prune.validate()
+        self.prune.validate()?;
+        self.validate.as_ref().map_or(Ok(()), |v| v.validate())
     }
 }
 

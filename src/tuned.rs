@@ -51,6 +51,9 @@ pub struct TunedConfig {
     pub chromosome: Option<Chromosome>,
     /// The resolved spec of the search (what `reproduce` re-runs).
     pub spec: Option<Spec>,
+    /// How the setting scored on the validation datasets (`search.validate`), when validated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub validation: Option<crate::ga::validate::ValidationSummary>,
 }
 
 /// Built-in copies of the thesis's tuned configs.

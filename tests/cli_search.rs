@@ -274,9 +274,11 @@ fn chromosomes_that_decode_alike_share_one_evaluation() {
     }
     // One evaluation: a unit per dataset, counted as such.
     assert_eq!(g["new_units"], 2);
+    // (The validation adds the thesis optimum's units; the GA's own are the setting's two.)
     let units: Vec<String> = std::fs::read_dir(dir.join("units"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.starts_with("sigmoid_5.8e-1_601."))
         .collect();
     assert_eq!(units.len(), 2, "{units:?}");
 }
@@ -406,4 +408,50 @@ fn children_record_their_birth_and_follow_the_ga_rules() {
             }
         }
     }
+}
+
+#[test]
+fn the_winner_is_validated_on_fresh_datasets() {
+    // The quick preset validates the top 3 on 3 validation datasets.
+    let dir = tmp("validate");
+    let o = search(&dir, &["--jobs", "2"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_str(&read(dir.join("validation.json"))).unwrap();
+    let hall: serde_json::Value = serde_json::from_str(&read(dir.join("hall_of_fame.json"))).unwrap();
+    let entries = v["entries"].as_array().unwrap();
+    // The top 3 in fitness order, then the thesis optimum (never drawn by this tiny search).
+    assert_eq!(entries.len(), 4, "{v}");
+    assert_eq!(entries[3]["source"], "thesis optimum");
+    assert_eq!(entries[3]["setting"], "sigmoid_5.8e-1_601");
+    let mut differ = false;
+    for (i, e) in entries.iter().enumerate() {
+        assert_eq!(e["search_scores"].as_array().unwrap().len(), 2);
+        assert_eq!(e["validation_scores"].as_array().unwrap().len(), 3);
+        if i < 3 {
+            assert_eq!(e["fitness"], hall[i]["fitness"], "entry {i} is hall of fame {}", i + 1);
+        }
+        differ |=
+            e["search_scores"][0] != e["validation_scores"][0] || e["search_scores"][1] != e["validation_scores"][1];
+    }
+    assert!(differ, "validation datasets are not the search's: {v}");
+    let best: serde_json::Value = serde_json::from_str(&read(dir.join("best.json"))).unwrap();
+    let tuned = entries.iter().find(|e| e["setting"] == v["tuned"]).unwrap();
+    assert_eq!(best["validation"]["scores"], tuned["validation_scores"]);
+    assert_eq!(best["validation"]["summary"], tuned["validation"]);
+    assert!(read(dir.join("report.md")).contains("## Validation"));
+    // best.json with its validation still reproduces.
+    let r = bin().arg("reproduce").arg(dir.join("best.json")).output().unwrap();
+    assert_eq!(r.status.code(), Some(0), "{}", String::from_utf8_lossy(&r.stdout));
+    // Validating again reads the stored units: same file, no new unit.
+    let count = |d: &str| std::fs::read_dir(dir.join(d)).unwrap().count();
+    let (units, val) = (count("units"), count("validation"));
+    assert_eq!(val, 4 * 3);
+    let before = read(dir.join("validation.json"));
+    let o = bin().args(["validate"]).arg(&dir).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(read(dir.join("validation.json")), before);
+    assert_eq!((count("units"), count("validation")), (units, val));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("(tuned)"));
+    let s = bin().args(["status"]).arg(&dir).output().unwrap();
+    assert!(String::from_utf8_lossy(&s.stdout).contains("validation "), "{}", String::from_utf8_lossy(&s.stdout));
 }

@@ -5,3 +5,4 @@ pub mod operators;
 pub mod prune;
 pub mod search;
 pub mod units;
+pub mod validate;

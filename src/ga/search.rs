@@ -416,6 +416,7 @@ fn tuned(spec: &Spec, best: &IndividualRecord, generation: usize, ev: &Evaluator
         generation: Some(generation),
         chromosome: Some(best.genes),
         spec: Some(spec.clone()),
+        validation: None,
     }
 }
 
@@ -658,10 +659,25 @@ pub fn ga_seed(spec: &Spec) -> u64 {
     crate::rng::derive(spec.seed, &format!("ga/{}", spec.env.env().name()), &[])
 }
 
-/// Runs (or resumes) the search in `dir`. Unit results already stored are reused.
+/// Runs (or resumes) the search in `dir`. Unit results already stored are reused. A finished
+/// search whose spec has `search.validate` then validates its winner ([`super::validate`]).
 pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
     let spec = load_spec(dir)?;
-    let _lock = RunLock::acquire(dir)?;
+    let lock = RunLock::acquire(dir)?;
+    let ending = run_generations(dir, &spec, exec, controls)?;
+    if let (Ending::Finished(_), Some(rule)) = (&ending, &spec.search.validate) {
+        let v = super::validate::run(dir, rule, controls.quiet)?;
+        if !controls.quiet {
+            eprintln!("validation: {}", v.note);
+        }
+        report(dir)?;
+    }
+    drop(lock);
+    Ok(ending)
+}
+
+fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
+    let spec = spec.clone();
     let ev = Evaluator::new(spec.clone(), dir);
     // Fail early on a dataset that cannot be encoded (e.g. per_action on continuous actions).
     ev.dataset(0)?;
@@ -917,7 +933,10 @@ fn write_outputs(
         .map(|(r, g)| serde_json::json!({"generation": g, "genes": r.genes, "decoded": r.decoded, "fitness": r.fitness, "scores": r.scores}))
         .collect();
     write_json(&dir.join("hall_of_fame.json"), &hof)?;
-    write_json(&dir.join("best.json"), &tuned(spec, best, best_generation, ev))?;
+    let mut t = tuned(spec, best, best_generation, ev);
+    // Keep a validation of this same winner (a resumed or re-reported search).
+    t.validation = super::validate::load(dir).and_then(|v| v.summary_of(&best.setting));
+    write_json(&dir.join("best.json"), &t)?;
     let rows = fitness_rows(records);
     write_fitness_csv(dir, &rows)?;
     crate::report::plot::fitness(dir, spec.env.env().name(), &rows)
@@ -958,6 +977,9 @@ pub fn report(dir: &Path) -> Result<usize> {
         ));
     }
     md.push_str("\n![fitness per generation](fitness.png)\n");
+    if let Some(v) = super::validate::load(dir) {
+        md.push_str(&v.markdown());
+    }
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     Ok(records.len())
 }

@@ -102,17 +102,57 @@ pub fn expected_cost(s: &Decoded, max_epochs: usize) -> f64 {
     epochs * per_epoch
 }
 
+/// Which datasets a unit runs on: the search's (fitness), or the validation datasets that
+/// re-score a search's top settings, from a third stream disjoint from search and comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Search datasets: `dataset/search`, networks from `init`, evaluation from `eval/search`;
+    /// results in `units/`.
+    Search,
+    /// Validation datasets: `dataset/validation`, networks from `init/validation`, evaluation
+    /// from `eval/validation`; results in `validation/`.
+    Validation,
+}
+
+impl Role {
+    /// The dataset stream's role name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Search => "search",
+            Role::Validation => "validation",
+        }
+    }
+    fn init_purpose(self) -> &'static str {
+        match self {
+            Role::Search => "init",
+            Role::Validation => "init/validation",
+        }
+    }
+    fn folder(self) -> &'static str {
+        match self {
+            Role::Search => "units",
+            Role::Validation => "validation",
+        }
+    }
+}
+
 /// Evaluates units of one search: datasets are collected lazily and shared.
 pub struct Evaluator {
     spec: Spec,
     dir: PathBuf,
+    role: Role,
     data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
 }
 
 impl Evaluator {
     /// An evaluator for the search in `dir` with resolved `spec`.
     pub fn new(spec: Spec, dir: &Path) -> Self {
-        Evaluator { spec, dir: dir.to_path_buf(), data: Mutex::new(HashMap::new()) }
+        Self::with_role(spec, dir, Role::Search)
+    }
+
+    /// An evaluator of `role`'s datasets for the search in `dir`.
+    pub fn with_role(spec: Spec, dir: &Path, role: Role) -> Self {
+        Evaluator { spec, dir: dir.to_path_buf(), role, data: Mutex::new(HashMap::new()) }
     }
 
     /// The resolved spec.
@@ -127,7 +167,7 @@ impl Evaluator {
         }
         let env = self.spec.env.env();
         let s = &self.spec.search;
-        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, "search", d))?;
+        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, self.role.name(), d))?;
         let enc = Encoded::new(&data, env.actions(), s.actions)?;
         let x = Arc::new((data, enc));
         self.data.lock().expect("dataset cache").insert(d, x.clone());
@@ -153,10 +193,11 @@ impl Evaluator {
 
     /// The seeds of setting `s` on dataset `d`: the networks' from
     /// `(seed, "init", [activation, δ_min bits, patience, d])`, the evaluation's from
-    /// `(seed, "eval/search", [d])`.
+    /// `(seed, "eval/search", [d])` (`init/validation` and `eval/validation` for validation).
     pub fn seeds(&self, s: &Decoded, d: usize) -> (u64, u64) {
         let idx = [activation_code(s.activation), s.delta_min.to_bits(), s.patience as u64, d as u64];
-        (rng::derive(self.spec.seed, "init", &idx), rng::derive(self.spec.seed, "eval/search", &[d as u64]))
+        let eval = format!("eval/{}", self.role.name());
+        (rng::derive(self.spec.seed, self.role.init_purpose(), &idx), rng::derive(self.spec.seed, &eval, &[d as u64]))
     }
 
     /// Runs FQI for setting `s` on search dataset `d`: a pure function of (spec, s, d).
@@ -183,7 +224,7 @@ impl Evaluator {
 
     /// Where a unit's result is stored.
     pub fn unit_path(&self, id: &str) -> PathBuf {
-        self.dir.join("units").join(format!("{id}.json"))
+        self.dir.join(self.role.folder()).join(format!("{id}.json"))
     }
 
     /// Computes a unit and stores it atomically.

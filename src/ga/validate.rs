@@ -1,0 +1,263 @@
+//! Validating a search's winner. The best fitness is the maximum of hundreds of noisy
+//! evaluations, so it is biased upward: the hall of fame's top settings, and the thesis's optimum
+//! beside them, are re-scored on fresh validation datasets (a third stream, disjoint from the
+//! search's and the comparisons'), with fresh network and evaluation seeds. The tuned config stays
+//! the best fitness, as in the thesis; the validation says how much of it holds, and whether
+//! another of the top settings validates better.
+//!
+//! Writes `validation.json` and the `validation` summary of `best.json`; results of its units live
+//! in `validation/` (search-dataset units of the thesis optimum, when it was never drawn, in
+//! `units/`), so running it again only reads them.
+
+use super::chromosome::Decoded;
+use super::search::{fitness, load_spec};
+use super::units::{Evaluator, Role, expected_cost, setting_id, unit_id};
+use crate::error::{Error, Result, ensure};
+use crate::report::stats::{Summary, summarize};
+use crate::store::{read_json, write_json};
+use crate::tuned::TunedConfig;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// `search.validate` of a spec: how many of the hall of fame's best settings to re-score, on how
+/// many validation datasets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidateRule {
+    /// Settings re-scored, best fitness first.
+    pub top: usize,
+    /// Validation datasets each is scored on.
+    pub datasets: usize,
+}
+
+impl ValidateRule {
+    /// Validates the rule; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
+        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")
+    }
+}
+
+/// One setting's figures on the search and the validation datasets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Entry {
+    /// `hall of fame 1` … or `thesis optimum`.
+    pub source: String,
+    /// The setting's name, as in unit ids.
+    pub setting: String,
+    /// What it decodes to.
+    #[serde(flatten)]
+    pub decoded: Decoded,
+    /// Fitness under the search (mean of `search_scores`; `None` when a dataset diverged).
+    pub fitness: Option<f64>,
+    /// Scores on the search datasets (`None` = diverged).
+    pub search_scores: Vec<Option<f64>>,
+    /// Mean and 95 % interval of the search scores (`None` when a dataset diverged).
+    pub search: Option<Summary>,
+    /// Scores on the validation datasets (`None` = diverged).
+    pub validation_scores: Vec<Option<f64>>,
+    /// Mean and 95 % interval of the validation scores (`None` when a dataset diverged).
+    pub validation: Option<Summary>,
+}
+
+/// `validation.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Validation {
+    /// The rule it ran with.
+    pub rule: ValidateRule,
+    /// The top settings in fitness order, then the thesis optimum when it is not among them.
+    pub entries: Vec<Entry>,
+    /// The tuned config's setting (the best fitness).
+    pub tuned: String,
+    /// The setting of the top `rule.top` with the best validation mean.
+    pub best_validated: Option<String>,
+    /// One line saying what the validation found.
+    pub note: String,
+}
+
+/// The validation summary kept in `best.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationSummary {
+    /// Validation datasets.
+    pub datasets: usize,
+    /// The tuned setting's scores on them (`None` = diverged).
+    pub scores: Vec<Option<f64>>,
+    /// Their mean and 95 % interval.
+    pub summary: Option<Summary>,
+    /// What the validation found (see `validation.json`).
+    pub note: String,
+}
+
+fn summary(scores: &[Option<f64>]) -> Option<Summary> {
+    let v: Option<Vec<f64>> = scores.iter().copied().collect();
+    v.and_then(|v| summarize(&v))
+}
+
+#[derive(Deserialize)]
+struct HallEntry {
+    decoded: Decoded,
+}
+
+/// Re-scores the top settings of the search in `dir` (which must have finished at least one
+/// generation) and writes `validation.json` and `best.json`'s `validation`. Units already stored
+/// are read, not recomputed.
+pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
+    rule.validate().map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
+    let spec = load_spec(dir)?;
+    let hall_path = dir.join("hall_of_fame.json");
+    let hall: Vec<HallEntry> = read_json(&hall_path)?;
+    let best_path = dir.join("best.json");
+    let mut best = TunedConfig::load(&best_path)?;
+    let env = spec.env.env().name();
+
+    let mut picks: Vec<(String, Decoded)> =
+        hall.iter().take(rule.top).enumerate().map(|(i, h)| (format!("hall of fame {}", i + 1), h.decoded)).collect();
+    if let Ok((t, _)) = TunedConfig::resolve("thesis", env) {
+        let d = Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience };
+        if !picks.iter().any(|(_, p)| setting_id(p) == setting_id(&d)) {
+            picks.push(("thesis optimum".into(), d));
+        }
+    }
+
+    let search = Evaluator::new(spec.clone(), dir);
+    let validation = Evaluator::with_role(spec.clone(), dir, Role::Validation);
+    crate::store::create_dir(&dir.join("validation"))?;
+    let s = &spec.search;
+    let mut todo: Vec<(&Evaluator, String, f64)> = Vec::new();
+    for (_, d) in &picks {
+        let cost = expected_cost(d, s.network.max_epochs);
+        for k in 0..s.datasets {
+            todo.push((&search, unit_id(d, k), cost));
+        }
+        for k in 0..rule.datasets {
+            todo.push((&validation, unit_id(d, k), cost));
+        }
+    }
+    todo.retain(|(ev, id, _)| ev.load_unit(id).is_none());
+    // Longest first, so the last units do not leave a core idle.
+    todo.sort_by(|a, b| b.2.total_cmp(&a.2));
+    if !quiet {
+        eprintln!(
+            "validating {} settings on {} validation datasets: {} units to run",
+            picks.len(),
+            rule.datasets,
+            todo.len()
+        );
+    }
+    todo.par_iter().with_max_len(1).try_for_each(|(ev, id, _)| ev.run_unit(id))?;
+
+    let scores = |ev: &Evaluator, d: &Decoded, n: usize| -> Result<Vec<Option<f64>>> {
+        (0..n)
+            .map(|k| {
+                let id = unit_id(d, k);
+                ev.load_unit(&id).map(|u| u.score).ok_or_else(|| Error::Data(format!("missing unit result {id}")))
+            })
+            .collect()
+    };
+    let mut entries = Vec::with_capacity(picks.len());
+    for (source, d) in &picks {
+        let search_scores = scores(&search, d, s.datasets)?;
+        let validation_scores = scores(&validation, d, rule.datasets)?;
+        let f = fitness(&search_scores);
+        entries.push(Entry {
+            source: source.clone(),
+            setting: setting_id(d),
+            decoded: *d,
+            fitness: f.is_finite().then_some(f),
+            search: summary(&search_scores),
+            search_scores,
+            validation: summary(&validation_scores),
+            validation_scores,
+        });
+    }
+
+    let tuned =
+        setting_id(&Decoded { activation: best.activation, delta_min: best.delta_min, patience: best.patience });
+    let mean = |e: &Entry| e.validation.map_or(f64::NEG_INFINITY, |v| v.mean);
+    let top: Vec<&Entry> = entries.iter().filter(|e| e.source != "thesis optimum").collect();
+    let best_validated =
+        top.iter().copied().max_by(|a, b| mean(a).total_cmp(&mean(b)).then(std::cmp::Ordering::Greater));
+    let tuned_entry = entries.iter().find(|e| e.setting == tuned);
+    let show =
+        |e: &Entry| e.validation.map_or("−∞ (diverged)".into(), |v| format!("{:.3} ± {:.3}", v.mean, v.ci95));
+    let note = match (tuned_entry, best_validated) {
+        (Some(t), Some(b)) if b.setting != t.setting && mean(b) > mean(t) => format!(
+            "the tuned config ({}, fitness {}) validates at {}; {} ({}, fitness {}) validates better at {}",
+            t.setting,
+            fmt(t.fitness),
+            show(t),
+            b.source,
+            b.setting,
+            fmt(b.fitness),
+            show(b)
+        ),
+        (Some(t), _) => format!(
+            "the tuned config ({}, fitness {}) validates at {}, the best of the top {}",
+            t.setting,
+            fmt(t.fitness),
+            show(t),
+            top.len()
+        ),
+        (None, _) => format!("the tuned config {tuned} is not in the hall of fame's top {}", rule.top),
+    };
+    let v = Validation {
+        rule: rule.clone(),
+        tuned: tuned.clone(),
+        best_validated: best_validated.map(|b| b.setting.clone()),
+        note,
+        entries,
+    };
+    write_json(&dir.join("validation.json"), &v)?;
+    best.validation = v.summary_of(&tuned);
+    write_json(&best_path, &best)?;
+    Ok(v)
+}
+
+impl Validation {
+    /// The summary for `best.json` when `setting` is the validated tuned config.
+    pub fn summary_of(&self, setting: &str) -> Option<ValidationSummary> {
+        let t = self.entries.iter().find(|e| e.setting == setting && self.tuned == setting)?;
+        Some(ValidationSummary {
+            datasets: self.rule.datasets,
+            scores: t.validation_scores.clone(),
+            summary: t.validation,
+            note: self.note.clone(),
+        })
+    }
+
+    /// The validation as a Markdown section of the search's report.
+    pub fn markdown(&self) -> String {
+        let ci =
+            |s: &Option<Summary>| s.map_or("−∞ (diverged)".into(), |v| format!("{:.3} ± {:.3}", v.mean, v.ci95));
+        let mut md = format!(
+            "\n## Validation\n\nThe hall of fame's top {} and the thesis optimum, re-scored on {} validation datasets \
+             (fresh datasets, network and evaluation seeds). Means with 95 % intervals (1.96·std/√n).\n\n",
+            self.rule.top, self.rule.datasets
+        );
+        md.push_str("| | setting | fitness (search datasets) | validation |\n|---|---|---|---|\n");
+        for e in &self.entries {
+            let tuned = if e.setting == self.tuned { " (tuned)" } else { "" };
+            md.push_str(&format!(
+                "| {}{} | `{}` | {} | {} |\n",
+                e.source,
+                tuned,
+                e.setting,
+                ci(&e.search),
+                ci(&e.validation)
+            ));
+        }
+        md.push_str(&format!("\n{}.\n", self.note));
+        md
+    }
+}
+
+fn fmt(v: Option<f64>) -> String {
+    v.map_or("−∞".into(), |x| format!("{x:.3}"))
+}
+
+/// The stored validation of a search, if it ran.
+pub fn load(dir: &Path) -> Option<Validation> {
+    read_json(&dir.join("validation.json")).ok()
+}
