@@ -454,4 +454,14 @@ fn the_winner_is_validated_on_fresh_datasets() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("(tuned)"));
     let s = bin().args(["status"]).arg(&dir).output().unwrap();
     assert!(String::from_utf8_lossy(&s.stdout).contains("validation "), "{}", String::from_utf8_lossy(&s.stdout));
+    // `report` rebuilds the tables and plots from the stored results, identically; the plot shows
+    // the thesis optimum's fitness as its reference line.
+    let files = ["report.md", "fitness.csv", "fitness.svg", "best.json"];
+    let before: Vec<String> = files.iter().map(|f| read(dir.join(f))).collect();
+    assert!(before[2].contains("thesis optimum"), "fitness.svg has the reference line");
+    let o = bin().args(["report"]).arg(&dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for (f, b) in files.iter().zip(&before) {
+        assert_eq!(&read(dir.join(f)), b, "{f} rebuilt differently");
+    }
 }

@@ -939,7 +939,8 @@ fn write_outputs(
     write_json(&dir.join("best.json"), &t)?;
     let rows = fitness_rows(records);
     write_fitness_csv(dir, &rows)?;
-    crate::report::plot::fitness(dir, spec.env.env().name(), &rows)
+    let reference = super::validate::load(dir).and_then(|v| v.thesis_fitness(spec.env.env().name()));
+    crate::report::plot::fitness(dir, spec.env.env().name(), &rows, reference.map(|f| ("thesis optimum", f)))
 }
 
 /// Regenerates `fitness.csv`, `fitness.png`, `fitness.svg` and `report.md` of a search from its
@@ -958,7 +959,8 @@ pub fn report(dir: &Path) -> Result<usize> {
         .collect::<Result<_>>()?;
     let rows = fitness_rows(&records);
     write_fitness_csv(dir, &rows)?;
-    crate::report::plot::fitness(dir, spec.env.env().name(), &rows)?;
+    let reference = super::validate::load(dir).and_then(|v| v.thesis_fitness(spec.env.env().name()));
+    crate::report::plot::fitness(dir, spec.env.env().name(), &rows, reference.map(|f| ("thesis optimum", f)))?;
     let mut md = format!("# GA search — {}\n\n", spec.env.env().name());
     md.push_str(&format!(
         "Population {}, {} search datasets × {} episodes, K = {}, master seed {}.\n\n",
@@ -992,6 +994,7 @@ fn fitness_rows(records: &[GenerationRecord]) -> Vec<FitnessRow> {
             best: r.stats.max,
             mean: r.stats.mean,
             best_so_far: r.best_so_far.fitness,
+            min: r.stats.min,
         })
         .collect()
 }

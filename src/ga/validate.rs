@@ -227,6 +227,13 @@ impl Validation {
         })
     }
 
+    /// The thesis optimum's fitness under this search's fitness, when it was scored.
+    pub fn thesis_fitness(&self, env: &str) -> Option<f64> {
+        let (t, _) = TunedConfig::resolve("thesis", env).ok()?;
+        let id = setting_id(&Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience });
+        self.entries.iter().find(|e| e.setting == id)?.fitness
+    }
+
     /// The validation as a Markdown section of the search's report.
     pub fn markdown(&self) -> String {
         let ci =

@@ -69,6 +69,7 @@ fn series(label: &str, color: usize, points: &[(usize, Option<Summary>)]) -> Ser
         points: points.iter().filter_map(|(x, s)| s.map(|s| (*x as f64, s.mean))).collect(),
         band: points.iter().filter_map(|(x, s)| s.map(|s| (*x as f64, s.mean - s.ci95, s.mean + s.ci95))).collect(),
         color,
+        wide: false,
     }
 }
 

@@ -33,6 +33,8 @@ pub struct Series {
     pub band: Vec<(f64, f64, f64)>,
     /// Palette index.
     pub color: usize,
+    /// Drawn wide and pale, under the other lines (so a line that coincides with it stays visible).
+    pub wide: bool,
 }
 
 fn color(i: usize) -> RGBColor {
@@ -161,12 +163,15 @@ where
             poly.extend(s.band.iter().rev().map(|b| (b.0, b.1)));
             chart.draw_series(std::iter::once(Polygon::new(poly, c.mix(0.18).filled()))).map_err(|x| e(&x))?;
         }
+        let line = if s.wide { c.mix(0.35).stroke_width(7) } else { c.stroke_width(2) };
         chart
-            .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))
+            .draw_series(LineSeries::new(s.points.iter().copied(), line))
             .map_err(|x| e(&x))?
             .label(s.label.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], c.stroke_width(3)));
-        chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|x| e(&x))?;
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], line));
+        if !s.wide {
+            chart.draw_series(s.points.iter().map(|&p| Circle::new(p, 3, c.filled()))).map_err(|x| e(&x))?;
+        }
     }
     chart
         .configure_series_labels()
@@ -210,18 +215,40 @@ pub struct FitnessRow {
     pub mean: Option<f64>,
     /// Best fitness so far.
     pub best_so_far: Option<f64>,
+    /// Lowest finite fitness of the generation.
+    pub min: Option<f64>,
 }
 
-/// `fitness.png` / `fitness.svg` of a search: best and mean fitness per generation, and the best so far.
-pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow]) -> Result<()> {
+/// `fitness.png` / `fitness.svg` of a search: the best so far (wide, underneath), the best and the
+/// mean of each generation with its spread (min–max of the finite fitnesses), and `reference`
+/// (a known config's fitness under this search's fitness, e.g. the thesis optimum) as a flat line.
+pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&str, f64)>) -> Result<()> {
     let pick = |f: fn(&FitnessRow) -> Option<f64>| -> Vec<(f64, f64)> {
         rows.iter().filter_map(|r| f(r).map(|v| (r.generation as f64, v))).collect()
     };
-    let series = [
-        Series { label: "best of generation".into(), points: pick(|r| r.best), band: vec![], color: 0 },
-        Series { label: "mean of generation".into(), points: pick(|r| r.mean), band: vec![], color: 5 },
-        Series { label: "best so far".into(), points: pick(|r| r.best_so_far), band: vec![], color: 1 },
+    let spread: Vec<(f64, f64, f64)> =
+        rows.iter().filter_map(|r| Some((r.generation as f64, r.min?, r.best?))).collect();
+    let mut series = vec![
+        Series { label: "best so far".into(), points: pick(|r| r.best_so_far), band: vec![], color: 1, wide: true },
+        Series { label: "best of generation".into(), points: pick(|r| r.best), band: vec![], color: 0, wide: false },
+        Series {
+            label: "mean of generation (band: min–max)".into(),
+            points: pick(|r| r.mean),
+            band: spread,
+            color: 5,
+            wide: false,
+        },
     ];
+    if let (Some((label, f)), Some(first), Some(last)) = (reference, rows.first(), rows.last()) {
+        let (x0, x1) = (first.generation as f64, last.generation.max(first.generation + 1) as f64);
+        series.push(Series {
+            label: format!("{label}: {f:.2}"),
+            points: vec![(x0, f), (x1, f)],
+            band: vec![],
+            color: 2,
+            wide: false,
+        });
+    }
     lines(&dir.join("fitness"), &format!("GA fitness — {env}"), "generation", "fitness (mean score)", &series)
 }
 
