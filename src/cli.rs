@@ -676,8 +676,7 @@ fn cmd_validate(a: ValidateArgs) -> Result<ExitCode> {
             a.dir.join("spec.json").display()
         ),
     };
-    let v = validate::run(&a.dir, &rule, a.quiet)?;
-    crate::ga::search::report(&a.dir)?;
+    let v = validate::run_alone(&a.dir, &rule, a.quiet)?;
     let ci = |s: &Option<crate::report::stats::Summary>| {
         s.map_or("−∞ (diverged)".to_string(), |v| format!("{:.4} ± {:.4}", v.mean, v.ci95))
     };

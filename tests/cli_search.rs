@@ -170,6 +170,10 @@ fn a_second_process_on_the_same_run_is_refused() {
     let o = bin().args(["search", "--resume", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("in use by process"));
+    // Validating a run in use is refused the same way.
+    let o = bin().args(["validate", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("in use by process"));
 }
 
 #[test]

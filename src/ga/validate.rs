@@ -264,6 +264,15 @@ fn fmt(v: Option<f64>) -> String {
     v.map_or("−∞".into(), |x| format!("{x:.3}"))
 }
 
+/// [`run`] for a search that is not running: takes the run's lock first, so it never races a
+/// search (or another validation) writing the same directory, then rebuilds the report.
+pub fn run_alone(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
+    let _lock = crate::store::RunLock::acquire(dir)?;
+    let v = run(dir, rule, quiet)?;
+    super::search::report(dir)?;
+    Ok(v)
+}
+
 /// The stored validation of a search, if it ran.
 pub fn load(dir: &Path) -> Option<Validation> {
     read_json(&dir.join("validation.json")).ok()
