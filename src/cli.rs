@@ -201,7 +201,7 @@ pub struct SearchArgs {
     /// Overlay a preset (a name under searches/presets/ or a file); repeatable, applied in order.
     #[arg(long)]
     pub preset: Vec<String>,
-    /// A small, real search (the `quick` preset): about a minute on 2 cores.
+    /// A small, real search (the `quick` preset) for trying the tool: a few seconds on 2 cores.
     #[arg(long)]
     pub quick: bool,
     /// Turn on the spec's opt-in pruning (the `prune` preset; beyond the thesis, see README).
@@ -677,9 +677,7 @@ fn cmd_validate(a: ValidateArgs) -> Result<ExitCode> {
         ),
     };
     let v = validate::run_alone(&a.dir, &rule, a.quiet)?;
-    let ci = |s: &Option<crate::report::stats::Summary>| {
-        s.map_or("−∞ (diverged)".to_string(), |v| format!("{:.4} ± {:.4}", v.mean, v.ci95))
-    };
+    let ci = |s: &Option<crate::report::stats::Summary>| crate::report::stats::interval(*s, 4);
     println!("{:<22} {:<24} {:>20} {:>20}", "", "setting", "search datasets", "validation");
     for e in &v.entries {
         let tag = if e.setting == v.tuned { format!("{} (tuned)", e.source) } else { e.source.clone() };

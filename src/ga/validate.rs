@@ -13,7 +13,7 @@ use super::chromosome::Decoded;
 use super::search::{fitness, load_spec};
 use super::units::{Evaluator, Role, expected_cost, setting_id, unit_id};
 use crate::error::{Error, Result, ensure};
-use crate::report::stats::{Summary, summarize};
+use crate::report::stats::{Summary, interval, summarize};
 use crate::store::{read_json, write_json};
 use crate::tuned::TunedConfig;
 use rayon::prelude::*;
@@ -180,8 +180,7 @@ pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
     let best_validated =
         top.iter().copied().max_by(|a, b| mean(a).total_cmp(&mean(b)).then(std::cmp::Ordering::Greater));
     let tuned_entry = entries.iter().find(|e| e.setting == tuned);
-    let show =
-        |e: &Entry| e.validation.map_or("−∞ (diverged)".into(), |v| format!("{:.3} ± {:.3}", v.mean, v.ci95));
+    let show = |e: &Entry| interval(e.validation, 3);
     let note = match (tuned_entry, best_validated) {
         (Some(t), Some(b)) if b.setting != t.setting && mean(b) > mean(t) => format!(
             "the tuned config ({}, fitness {}) validates at {}; {} ({}, fitness {}) validates better at {}",
@@ -236,8 +235,7 @@ impl Validation {
 
     /// The validation as a Markdown section of the search's report.
     pub fn markdown(&self) -> String {
-        let ci =
-            |s: &Option<Summary>| s.map_or("−∞ (diverged)".into(), |v| format!("{:.3} ± {:.3}", v.mean, v.ci95));
+        let ci = |s: &Option<Summary>| interval(*s, 3);
         let mut md = format!(
             "\n## Validation\n\nThe hall of fame's top {} and the thesis optimum, re-scored on {} validation datasets \
              (fresh datasets, network and evaluation seeds). Means with 95 % intervals (1.96·std/√n).\n\n",

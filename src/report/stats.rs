@@ -28,6 +28,12 @@ pub fn summarize(values: &[f64]) -> Option<Summary> {
     Some(Summary { n, mean, std, ci95: 1.96 * std / (n as f64).sqrt() })
 }
 
+/// `mean ± ci95` with `digits` decimals, or `−∞ (diverged)` when there is no summary (a dataset
+/// diverged).
+pub fn interval(s: Option<Summary>, digits: usize) -> String {
+    s.map_or("−∞ (diverged)".into(), |v| format!("{:.digits$} ± {:.digits$}", v.mean, v.ci95))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
