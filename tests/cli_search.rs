@@ -363,6 +363,11 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     assert!(stops > 0, "the budget never stopped it; the test needs a smaller budget");
+    // Each generation's wall time is recorded once, however many invocations it took.
+    let st: serde_json::Value = serde_json::from_str(&read(d.join("state.json"))).unwrap();
+    let secs = st["generation_seconds"].as_array().unwrap();
+    assert_eq!(secs.len(), 4, "one wall time per generation after {stops} resumes: {secs:?}");
+    assert!(secs.iter().all(|s| s.as_f64().unwrap() > 0.0), "{secs:?}");
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
     }

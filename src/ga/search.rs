@@ -498,7 +498,12 @@ impl Clock {
         Some((this - self.current()).max(0.0) + per * generations.saturating_sub(g + 1) as f64)
     }
 
-    fn finish_generation(&mut self) -> f64 {
+    /// Ends generation `g` and returns its wall seconds. A generation replayed from stored units
+    /// keeps the time recorded when it ran, and the generation under way keeps its earlier time.
+    fn finish_generation(&mut self, g: usize) -> f64 {
+        if let Some(&recorded) = self.generation_seconds.get(g) {
+            return recorded;
+        }
         let secs = self.current();
         self.generation_seconds.push(secs);
         self.prior = 0.0;
@@ -842,10 +847,17 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
         });
 
         write_outputs(dir, &spec, &records, &hall, &b, bg, &ev)?;
-        let (secs, ran) = {
+        let (secs, ran, replayed) = {
             let mut c = runner.clock.lock().expect("clock");
-            let ran = c.done;
-            (c.finish_generation(), ran)
+            let (ran, replayed) = (c.done, g < c.generation_seconds.len());
+            (c.finish_generation(g), ran, replayed)
+        };
+        let cost = if replayed {
+            format!("replayed from stored units (ran in {})", human(secs))
+        } else if secs > 0.0 && ran > 0 {
+            format!("{ran} units in {} ({:.2} units/s)", human(secs), ran as f64 / secs)
+        } else {
+            format!("0 units in {} (nothing to run)", human(secs))
         };
         {
             let c = runner.clock.lock().expect("clock");
@@ -858,7 +870,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
         }
         progress.stage_done();
         progress.line(&format!(
-            "gen {} ({} of {}): best {} mean {} ({} diverged{}) | {} units in {} ({}) | best so far {} → fitness {} (gen {}) | {}",
+            "gen {} ({} of {}): best {} mean {} ({} diverged{}) | {} | best so far {} → fitness {} (gen {}) | {}",
             g,
             g + 1,
             s.stop.generations,
@@ -866,9 +878,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
             fmt(st.mean),
             st.diverged,
             if s.prune.enabled { format!(", {} pruned", st.pruned) } else { String::new() },
-            ran,
-            human(secs),
-            if secs > 0.0 && ran > 0 { format!("{:.2} units/s", ran as f64 / secs) } else { "nothing to run".into() },
+            cost,
             describe(&b.decoded),
             fmt(b.fitness),
             bg,
