@@ -806,7 +806,7 @@ fn cmd_report(a: ReportArgs) -> Result<ExitCode> {
         let out = crate::report::comparison::regenerate(&a.dir)?;
         eprintln!("wrote {} files into {}", out.files.len(), a.dir.display());
     } else if a.dir.join("spec.json").is_file() {
-        let n = crate::ga::search::report(&a.dir)?;
+        let n = crate::report::search::write(&a.dir)?;
         eprintln!(
             "wrote fitness.csv, fitness.png, fitness.svg and report.md for {n} generations into {}",
             a.dir.display()

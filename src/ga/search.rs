@@ -19,7 +19,6 @@ use super::units::{activation_name, expected_cost, setting_id};
 use crate::error::{Error, Result};
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
-use crate::report::plot::FitnessRow;
 use crate::report::stats::summarize;
 use crate::spec::Spec;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
@@ -390,7 +389,8 @@ fn stats(records: &[IndividualRecord]) -> GenerationStats {
     }
 }
 
-fn describe(d: &Decoded) -> String {
+/// A setting for humans: `tanh δ_min 0.00059 patience 311`.
+pub fn describe(d: &Decoded) -> String {
     format!("{} δ_min {} patience {}", activation_name(d.activation), d.delta_min, d.patience)
 }
 
@@ -675,7 +675,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         if !controls.quiet {
             eprintln!("validation: {}", v.note);
         }
-        report(dir)?;
+        crate::report::search::write(dir)?;
     }
     drop(lock);
     Ok(ending)
@@ -947,75 +947,7 @@ fn write_outputs(
     // Keep a validation of this same winner (a resumed or re-reported search).
     t.validation = super::validate::load(dir).and_then(|v| v.summary_of(&best.setting));
     write_json(&dir.join("best.json"), &t)?;
-    let rows = fitness_rows(records);
-    write_fitness_csv(dir, &rows)?;
-    let reference = super::validate::load(dir).and_then(|v| v.thesis_fitness(spec.env.env().name()));
-    crate::report::plot::fitness(dir, spec.env.env().name(), &rows, reference.map(|f| ("thesis optimum", f)))
-}
-
-/// Regenerates `fitness.csv`, `fitness.png`, `fitness.svg` and `report.md` of a search from its
-/// `generations.jsonl`, without recomputing. Returns the number of generations.
-pub fn report(dir: &Path) -> Result<usize> {
-    let spec = load_spec(dir)?;
-    let path = dir.join("generations.jsonl");
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let records: Vec<GenerationRecord> = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            serde_json::from_str(l)
-                .map_err(|e| Error::File { path: path.clone(), message: format!("line {}: {e}", i + 1) })
-        })
-        .collect::<Result<_>>()?;
-    let rows = fitness_rows(&records);
-    write_fitness_csv(dir, &rows)?;
-    let reference = super::validate::load(dir).and_then(|v| v.thesis_fitness(spec.env.env().name()));
-    crate::report::plot::fitness(dir, spec.env.env().name(), &rows, reference.map(|f| ("thesis optimum", f)))?;
-    let mut md = format!("# GA search — {}\n\n", spec.env.env().name());
-    md.push_str(&format!(
-        "Population {}, {} search datasets × {} episodes, K = {}, master seed {}.\n\n",
-        spec.search.ga.population, spec.search.datasets, spec.search.episodes, spec.search.iterations, spec.seed
-    ));
-    md.push_str("| generation | best | mean | diverged | best so far | settings |\n|---|---|---|---|---|---|\n");
-    for r in &records {
-        md.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} |\n",
-            r.generation,
-            fmt(r.stats.max),
-            fmt(r.stats.mean),
-            r.stats.diverged,
-            fmt(r.best_so_far.fitness),
-            describe(&r.best_so_far.decoded)
-        ));
-    }
-    md.push_str("\n![fitness per generation](fitness.png)\n");
-    if let Some(v) = super::validate::load(dir) {
-        md.push_str(&v.markdown());
-    }
-    write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
-    Ok(records.len())
-}
-
-fn fitness_rows(records: &[GenerationRecord]) -> Vec<FitnessRow> {
-    records
-        .iter()
-        .map(|r| FitnessRow {
-            generation: r.generation,
-            best: r.stats.max,
-            mean: r.stats.mean,
-            best_so_far: r.best_so_far.fitness,
-            min: r.stats.min,
-        })
-        .collect()
-}
-
-fn write_fitness_csv(dir: &Path, rows: &[FitnessRow]) -> Result<()> {
-    let mut csv = String::from("generation,best,mean,best_so_far\n");
-    let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:?}"));
-    for r in rows {
-        csv.push_str(&format!("{},{},{},{}\n", r.generation, o(r.best), o(r.mean), o(r.best_so_far)));
-    }
-    write_atomic(&dir.join("fitness.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))
+    crate::report::search::write_fitness(dir, spec, records)
 }
 
 /// The outcome of `reproduce`.

@@ -267,7 +267,7 @@ fn fmt(v: Option<f64>) -> String {
 pub fn run_alone(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
     let _lock = crate::store::RunLock::acquire(dir)?;
     let v = run(dir, rule, quiet)?;
-    super::search::report(dir)?;
+    crate::report::search::write(dir)?;
     Ok(v)
 }
 

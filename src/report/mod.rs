@@ -3,4 +3,5 @@
 pub mod claims;
 pub mod comparison;
 pub mod plot;
+pub mod search;
 pub mod stats;

@@ -1,0 +1,252 @@
+//! A search's report, rebuilt from what the run directory stores: `fitness.csv`, `fitness.png`,
+//! `fitness.svg` and `report.md` come from `generations.jsonl`, `state.json`, `validation.json`
+//! and the unit files, which are read to check the scores `generations.jsonl` records (a record
+//! that disagrees with its unit is refused, naming both) and to count each generation's epochs.
+
+use super::plot::FitnessRow;
+use super::stats::{Summary, interval, summarize};
+use crate::error::{Error, Result};
+use crate::ga::search::{GenerationRecord, RunState, describe, load_spec};
+use crate::ga::units::{Evaluator, setting_id, unit_id};
+use crate::ga::validate::{self, Validation};
+use crate::progress::human;
+use crate::spec::Spec;
+use crate::store::{read_json, write_atomic};
+use std::collections::HashSet;
+use std::path::Path;
+
+/// Reads `generations.jsonl`.
+pub fn read_generations(dir: &Path) -> Result<Vec<GenerationRecord>> {
+    let path = dir.join("generations.jsonl");
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| Error::File { path: path.clone(), message: format!("line {}: {e}", i + 1) })
+        })
+        .collect()
+}
+
+/// `fitness.csv`, `fitness.png` and `fitness.svg`, with the thesis optimum's fitness as a reference
+/// line once the validation has scored it.
+pub fn write_fitness(dir: &Path, spec: &Spec, records: &[GenerationRecord]) -> Result<()> {
+    let rows: Vec<FitnessRow> = records
+        .iter()
+        .map(|r| FitnessRow {
+            generation: r.generation,
+            best: r.stats.max,
+            mean: r.stats.mean,
+            best_so_far: r.best_so_far.fitness,
+            min: r.stats.min,
+        })
+        .collect();
+    let mut csv = String::from("generation,best,mean,best_so_far\n");
+    let o = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:?}"));
+    for r in &rows {
+        csv.push_str(&format!("{},{},{},{}\n", r.generation, o(r.best), o(r.mean), o(r.best_so_far)));
+    }
+    write_atomic(&dir.join("fitness.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
+    let env = spec.env.env().name();
+    let reference = validate::load(dir).and_then(|v| v.thesis_fitness(env));
+    super::plot::fitness(dir, env, &rows, reference.map(|f| ("thesis optimum", f)))
+}
+
+/// What each generation cost: units no earlier generation had, and their epochs. Also checks every
+/// recorded score against its unit file.
+struct Cost {
+    new_units: usize,
+    epochs: usize,
+}
+
+fn costs(dir: &Path, spec: &Spec, records: &[GenerationRecord]) -> Result<Vec<Cost>> {
+    let ev = Evaluator::new(spec.clone(), dir);
+    let mut seen: HashSet<String> = HashSet::new();
+    let mut out = Vec::with_capacity(records.len());
+    for r in records {
+        let mut cost = Cost { new_units: 0, epochs: 0 };
+        for ind in &r.individuals {
+            for (d, recorded) in ind.scores.iter().enumerate() {
+                let id = unit_id(&ind.decoded, d);
+                let unit = ev.load_unit(&id).ok_or_else(|| Error::File {
+                    path: ev.unit_path(&id),
+                    message: format!(
+                        "missing or unreadable, but generations.jsonl scores generation {} individual {} with it",
+                        r.generation, ind.index
+                    ),
+                })?;
+                if unit.score.map(f64::to_bits) != recorded.map(f64::to_bits) {
+                    return Err(Error::File {
+                        path: dir.join("generations.jsonl"),
+                        message: format!(
+                            "generation {} individual {} dataset {d} records score {recorded:?}, but {} holds {:?}",
+                            r.generation,
+                            ind.index,
+                            ev.unit_path(&id).display(),
+                            unit.score
+                        ),
+                    });
+                }
+                if seen.insert(id) {
+                    cost.new_units += 1;
+                    cost.epochs += unit.epochs;
+                }
+            }
+        }
+        out.push(cost);
+    }
+    Ok(out)
+}
+
+fn fmt(v: Option<f64>) -> String {
+    v.map_or("−∞".into(), |x| format!("{x:.4}"))
+}
+
+/// How the search stands, in one sentence.
+fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
+    let done = records.len();
+    let gens = if done == 0 { "no generation".to_string() } else { format!("{done} generations (0–{})", done - 1) };
+    match st {
+        Some(st) => {
+            let wall = human(st.elapsed());
+            match st.state.as_str() {
+                "finished" => format!("Finished after {gens}: {}. Wall time {wall}.", st.reason),
+                "interrupted" => format!(
+                    "Stopped after {gens} and {} of generation {done}'s units ({}); `bfqi-ga search --resume` continues it. Wall time so far {wall}.",
+                    st.units_done, st.reason
+                ),
+                _ => format!("Running, after {gens}. Wall time so far {wall}."),
+            }
+        }
+        None => format!("{gens}; no state.json."),
+    }
+}
+
+/// Regenerates `fitness.csv`, `fitness.png`, `fitness.svg` and `report.md` of a search from its
+/// stored records, after checking them against the unit files. Returns the number of generations.
+pub fn write(dir: &Path) -> Result<usize> {
+    let spec = load_spec(dir)?;
+    let records = read_generations(dir)?;
+    let costs = costs(dir, &spec, &records)?;
+    let state: Option<RunState> = read_json(&dir.join("state.json")).ok();
+    write_fitness(dir, &spec, &records)?;
+
+    let s = &spec.search;
+    let mut md = format!("# GA search — {}\n\n", spec.env.env().name());
+    md.push_str(&format!(
+        "Population {}, {} search datasets × {} episodes, K = {}, network {:?}, master seed {}{}.\n\n",
+        s.ga.population,
+        s.datasets,
+        s.episodes,
+        s.iterations,
+        s.network.hidden,
+        spec.seed,
+        if s.prune.enabled {
+            format!("; **pruning on** (margin {}, after {} datasets)", s.prune.margin, s.prune.min_datasets)
+        } else {
+            String::new()
+        }
+    ));
+    md.push_str(&standing(state.as_ref(), &records));
+    md.push('\n');
+    if let Some(last) = records.last() {
+        md.push_str(&format!(
+            "Best: {}, fitness {} (generation {}).\n",
+            describe(&last.best_so_far.decoded),
+            fmt(last.best_so_far.fitness),
+            last.best_generation
+        ));
+    }
+    let pruning = s.prune.enabled;
+    md.push_str(&format!(
+        "\n| generation | new units | epochs | wall | best | mean | min | diverged{} | best so far | settings |\n|---|---|---|---|---|---|---|---|{}---|---|\n",
+        if pruning { " | pruned" } else { "" },
+        if pruning { "---|" } else { "" }
+    ));
+    let wall =
+        |g: usize| state.as_ref().and_then(|st| st.generation_seconds.get(g)).map_or("—".to_string(), |s| human(*s));
+    for (r, c) in records.iter().zip(&costs) {
+        md.push_str(&format!(
+            "| {} | {} | {:.2} M | {} | {} | {} | {} | {}{} | {} | {} |\n",
+            r.generation,
+            c.new_units,
+            c.epochs as f64 / 1e6,
+            wall(r.generation),
+            fmt(r.stats.max),
+            fmt(r.stats.mean),
+            fmt(r.stats.min),
+            r.stats.diverged,
+            if pruning { format!(" | {}", r.stats.pruned) } else { String::new() },
+            fmt(r.best_so_far.fitness),
+            describe(&r.best_so_far.decoded)
+        ));
+    }
+    md.push_str(
+        "\n`new units`: FQI runs (setting × dataset) no earlier generation had; `epochs`: their \
+         networks' epochs; `wall`: the generation's wall time, summed over invocations.\n",
+    );
+    md.push_str("\n![fitness per generation](fitness.png)\n");
+    if let Some(v) = validate::load(dir) {
+        md.push_str(&v.markdown());
+        md.push_str(&side_by_side(&v, spec.env.env().name()));
+    }
+    write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    Ok(records.len())
+}
+
+/// The tuned config beside the thesis optimum, dataset by dataset, on the search and the
+/// validation datasets.
+fn side_by_side(v: &Validation, env: &str) -> String {
+    let Some(ours) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
+    let Some(thesis) = crate::tuned::TunedConfig::resolve("thesis", env).ok().and_then(|(t, _)| {
+        let id = setting_id(&crate::ga::chromosome::Decoded {
+            activation: t.activation,
+            delta_min: t.delta_min,
+            patience: t.patience,
+        });
+        v.entries.iter().find(|e| e.setting == id)
+    }) else {
+        return String::new();
+    };
+    let n = ours.search_scores.len().max(ours.validation_scores.len());
+    let mut md = String::from(
+        "\n### GA optimum vs the thesis optimum, dataset by dataset\n\nScores per dataset; mean ± 95 % interval.\n\n",
+    );
+    md.push_str("| | datasets |");
+    for d in 0..n {
+        md.push_str(&format!(" {d} |"));
+    }
+    md.push_str(" mean ± 95 % |\n|---|---|");
+    md.push_str(&"---|".repeat(n + 1));
+    md.push('\n');
+    let row = |who: &str, setting: &str, which: &str, scores: &[Option<f64>], summary: Option<Summary>| {
+        let mut line = format!("| {who} `{setting}` | {which} |");
+        for d in 0..n {
+            let cell = match scores.get(d) {
+                Some(Some(x)) => format!("{x:.3}"),
+                Some(None) => "−∞".into(),
+                None => String::new(),
+            };
+            line.push_str(&format!(" {cell} |"));
+        }
+        line.push_str(&format!(" {} |\n", interval(summary, 3)));
+        line
+    };
+    for (which, pick) in [("search", true), ("validation", false)] {
+        for (who, e) in [("GA optimum", ours), ("thesis optimum", thesis)] {
+            let (scores, summary) =
+                if pick { (&e.search_scores, e.search) } else { (&e.validation_scores, e.validation) };
+            md.push_str(&row(who, &e.setting, which, scores, summary));
+        }
+    }
+    let diff = |a: &[Option<f64>], b: &[Option<f64>]| -> Option<Summary> {
+        let d: Option<Vec<f64>> = a.iter().zip(b).map(|(x, y)| Some((*x)? - (*y)?)).collect();
+        d.and_then(|d| summarize(&d))
+    };
+    md.push_str(&format!(
+        "\nGA optimum minus thesis optimum, paired by dataset: search {}, validation {}.\n",
+        interval(diff(&ours.search_scores, &thesis.search_scores), 3),
+        interval(diff(&ours.validation_scores, &thesis.validation_scores), 3)
+    ));
+    md
+}

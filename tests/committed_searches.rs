@@ -1,0 +1,128 @@
+//! The full-size searches committed under `results/searches/`: their reports rebuild identically
+//! from their records and units, the README's tables are the reports' own rows, and the cheapest
+//! one's tuned config reproduces bit for bit from a fresh clone.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches")
+}
+
+/// Committed search run directories (those with a spec.json), by name.
+fn searches() -> Vec<(String, PathBuf)> {
+    let mut out: Vec<(String, PathBuf)> = std::fs::read_dir(root())
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.join("spec.json").is_file())
+        .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), p))
+        .collect();
+    out.sort();
+    out
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            copy_dir(&p, &to.join(e.file_name()));
+        } else {
+            std::fs::copy(&p, to.join(e.file_name())).unwrap();
+        }
+    }
+}
+
+#[test]
+fn reports_rebuild_identically_from_the_stored_records() {
+    let found = searches();
+    assert!(!found.is_empty(), "no committed search under {}", root().display());
+    for (name, dir) in found {
+        let copy = std::env::temp_dir().join(format!("bfqi-committed-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&copy);
+        copy_dir(&dir, &copy);
+        let derived = ["fitness.csv", "fitness.png", "fitness.svg", "report.md"];
+        for f in derived {
+            std::fs::remove_file(copy.join(f)).unwrap_or_else(|e| panic!("{name}/{f}: {e}"));
+        }
+        let o = bin().arg("report").arg(&copy).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        for f in derived {
+            let (a, b) = (std::fs::read(dir.join(f)).unwrap(), std::fs::read(copy.join(f)).unwrap());
+            assert!(a == b, "{name}/{f}: `bfqi-ga report` does not rebuild the committed file");
+        }
+        std::fs::remove_dir_all(&copy).unwrap();
+    }
+}
+
+#[test]
+fn a_record_that_disagrees_with_its_unit_is_refused() {
+    let (name, dir) = searches().into_iter().next().expect("a committed search");
+    let copy = std::env::temp_dir().join(format!("bfqi-committed-{}-edited-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&copy);
+    copy_dir(&dir, &copy);
+    // A unit generation 0 scores its first individual with.
+    let gens = std::fs::read_to_string(copy.join("generations.jsonl")).unwrap();
+    let g0: serde_json::Value = serde_json::from_str(gens.lines().next().unwrap()).unwrap();
+    let first = copy.join("units").join(format!("{}.d0.json", g0["individuals"][0]["setting"].as_str().unwrap()));
+    let mut unit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&first).unwrap()).unwrap();
+    let score = unit["score"].as_f64().expect("a finite score in the first unit");
+    unit["score"] = serde_json::json!(score + 1.0);
+    std::fs::write(&first, serde_json::to_string(&unit).unwrap()).unwrap();
+    let o = bin().arg("report").arg(&copy).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("generations.jsonl") && err.contains(first.file_name().unwrap().to_str().unwrap()), "{err}");
+    std::fs::remove_dir_all(&copy).unwrap();
+}
+
+/// The README's table rows for each environment: a section `## <env> …` (the run directory's name,
+/// or the same with a hyphen), rows whose first cell is a generation number or names the GA or
+/// thesis optimum.
+fn readme_rows() -> Vec<(String, String)> {
+    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let mut section = String::new();
+    let mut rows = Vec::new();
+    for line in text.lines() {
+        if let Some(h) = line.strip_prefix("## ") {
+            section = h.split_whitespace().next().unwrap_or("").replace('-', "");
+            continue;
+        }
+        let Some(first) = line.strip_prefix("| ").and_then(|l| l.split(" |").next()) else { continue };
+        if first.parse::<usize>().is_ok() || first.starts_with("GA optimum") || first.starts_with("thesis optimum") {
+            rows.push((section.clone(), line.to_string()));
+        }
+    }
+    rows
+}
+
+#[test]
+fn the_readme_tables_are_the_reports_rows() {
+    let rows = readme_rows();
+    let mut checked = 0;
+    for (name, dir) in searches() {
+        let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
+        for (_, row) in rows.iter().filter(|(s, _)| *s == name) {
+            assert!(report.lines().any(|l| l == row), "README row not in {name}/report.md:\n{row}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 0, "no README row was checked");
+    let orphans: Vec<&(String, String)> =
+        rows.iter().filter(|(s, _)| !searches().iter().any(|(n, _)| n == s)).collect();
+    assert!(orphans.is_empty(), "README rows under a section with no committed search: {orphans:?}");
+}
+
+#[test]
+fn the_cartpole_search_reproduces_bit_for_bit() {
+    let best = root().join("cartpole/best.json");
+    let o = bin().arg("reproduce").arg(&best).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{out}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("matches bit for bit (10 datasets)"), "{out}");
+}
