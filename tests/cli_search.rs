@@ -368,6 +368,8 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
     let secs = st["generation_seconds"].as_array().unwrap();
     assert_eq!(secs.len(), 4, "one wall time per generation after {stops} resumes: {secs:?}");
     assert!(secs.iter().all(|s| s.as_f64().unwrap() > 0.0), "{secs:?}");
+    let run: serde_json::Value = serde_json::from_str(&read(d.join("run.json"))).unwrap();
+    assert_eq!(run["resumed"].as_array().map(Vec::len), Some(stops), "run.json lists each resume");
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
     }

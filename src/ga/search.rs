@@ -51,6 +51,19 @@ pub struct RunInfo {
     /// built outside a git checkout).
     #[serde(default)]
     pub commit: String,
+    /// Each later invocation that continued the run (`--resume`, or a batch resumed): when, and
+    /// the commit of the binary, which may differ from `commit`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<Resumed>,
+}
+
+/// One invocation that continued a search, in `run.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Resumed {
+    /// When it started (UTC).
+    pub at: String,
+    /// The source commit of its binary.
+    pub commit: String,
 }
 
 /// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.
@@ -304,6 +317,7 @@ pub fn prepare(
         created: store::now_utc().1,
         version: env!("CARGO_PKG_VERSION").into(),
         commit: env!("BFQI_GA_COMMIT").into(),
+        resumed: Vec::new(),
     };
     create(&dir, &spec, &info)?;
     Ok(dir)
@@ -669,6 +683,13 @@ pub fn ga_seed(spec: &Spec) -> u64 {
 pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
     let spec = load_spec(dir)?;
     let lock = RunLock::acquire(dir)?;
+    if dir.join("state.json").is_file() {
+        // A run that began before: say which binary continues it.
+        let path = dir.join("run.json");
+        let mut info: RunInfo = read_json(&path)?;
+        info.resumed.push(Resumed { at: store::now_utc().1, commit: env!("BFQI_GA_COMMIT").into() });
+        write_json(&path, &info)?;
+    }
     let ending = run_generations(dir, &spec, exec, controls)?;
     if let (Ending::Finished(_), Some(rule)) = (&ending, &spec.search.validate) {
         let v = super::validate::run(dir, rule, controls.quiet)?;
