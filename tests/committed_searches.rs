@@ -81,20 +81,28 @@ fn a_record_that_disagrees_with_its_unit_is_refused() {
     std::fs::remove_dir_all(&copy).unwrap();
 }
 
-/// The README's table rows for each environment: a section `## <env> …` (the run directory's name,
-/// or the same with a hyphen), rows whose first cell is a generation number or names the GA or
-/// thesis optimum.
+/// The README's rows of the tables it copies from the search reports (the generations table and
+/// the dataset-by-dataset table), with the section they are in: `## <env> …`, where `<env>` is the
+/// run directory's name, hyphens allowed (`cart-pole`).
 fn readme_rows() -> Vec<(String, String)> {
     let text = std::fs::read_to_string(root().join("README.md")).unwrap();
-    let mut section = String::new();
+    let (mut section, mut header) = (String::new(), String::new());
     let mut rows = Vec::new();
     for line in text.lines() {
         if let Some(h) = line.strip_prefix("## ") {
             section = h.split_whitespace().next().unwrap_or("").replace('-', "");
             continue;
         }
-        let Some(first) = line.strip_prefix("| ").and_then(|l| l.split(" |").next()) else { continue };
-        if first.parse::<usize>().is_ok() || first.starts_with("GA optimum") || first.starts_with("thesis optimum") {
+        if !line.starts_with('|') {
+            header.clear();
+            continue;
+        }
+        if header.is_empty() {
+            header = line.to_string();
+            continue;
+        }
+        let copied = header.starts_with("| generation | new units |") || header.starts_with("| | datasets |");
+        if copied && !line.starts_with("|---") {
             rows.push((section.clone(), line.to_string()));
         }
     }

@@ -59,12 +59,22 @@ pub fn render(
     draw: &dyn Fn(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
     draw_svg: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
 ) -> Result<()> {
+    render_sized(base, SIZE, draw, draw_svg)
+}
+
+/// [`render`] at `size` pixels.
+fn render_sized(
+    base: &Path,
+    size: (u32, u32),
+    draw: &dyn Fn(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
+    draw_svg: &dyn Fn(&DrawingArea<SVGBackend<'_>, Shift>) -> Result<()>,
+) -> Result<()> {
     ensure_font();
     let png = base.with_extension("png");
     let tmp =
         base.with_file_name(format!(".{}.tmp.png", base.file_name().map_or("plot".into(), |n| n.to_string_lossy())));
     {
-        let root = BitMapBackend::new(&tmp, SIZE).into_drawing_area();
+        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(&png, e))?;
         draw(&root)?;
         root.present().map_err(|e| plot_err(&png, e))?;
@@ -73,7 +83,7 @@ pub fn render(
     let svg_path = base.with_extension("svg");
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(&svg_path, e))?;
         draw_svg(&root)?;
         root.present().map_err(|e| plot_err(&svg_path, e))?;
@@ -219,9 +229,11 @@ pub struct FitnessRow {
     pub min: Option<f64>,
 }
 
-/// `fitness.png` / `fitness.svg` of a search: the best so far (wide, underneath), the best and the
-/// mean of each generation with its spread (min–max of the finite fitnesses), and `reference`
-/// (a known config's fitness under this search's fitness, e.g. the thesis optimum) as a flat line.
+/// `fitness.png` / `fitness.svg` of a search, in two panels. Above, the whole population: the best
+/// so far (wide, underneath), the best and the mean of each generation with its spread (min–max of
+/// the finite fitnesses). Below, the best so far alone on its own scale, since its gains are tiny
+/// beside the population's spread. Both show `reference` (a known config's fitness under this
+/// search's fitness, e.g. the thesis optimum) as a flat line.
 pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&str, f64)>) -> Result<()> {
     let pick = |f: fn(&FitnessRow) -> Option<f64>| -> Vec<(f64, f64)> {
         rows.iter().filter_map(|r| f(r).map(|v| (r.generation as f64, v))).collect()
@@ -249,7 +261,26 @@ pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&s
             wide: false,
         });
     }
-    lines(&dir.join("fitness"), &format!("GA fitness — {env}"), "generation", "fitness (mean score)", &series)
+    let zoom: Vec<Series> =
+        series.iter().filter(|s| s.wide || s.color == 2).map(|s| Series { wide: false, ..s.clone() }).collect();
+    let title = format!("GA fitness — {env}");
+    let y = "fitness (mean score)";
+    const TALL: (u32, u32) = (SIZE.0, SIZE.1 + 300);
+    let split = SIZE.1 as i32 - 40;
+    render_sized(
+        &dir.join("fitness"),
+        TALL,
+        &|a| {
+            let (top, bottom) = a.split_vertically(split);
+            draw_lines(&top, &title, "generation", y, &series, false)?;
+            draw_lines(&bottom, "best so far, zoomed", "generation", y, &zoom, false)
+        },
+        &|a| {
+            let (top, bottom) = a.split_vertically(split);
+            draw_lines(&top, &title, "generation", y, &series, false)?;
+            draw_lines(&bottom, "best so far, zoomed", "generation", y, &zoom, false)
+        },
+    )
 }
 
 /// Colour of `t ∈ [0, 1]`: viridis for magnitudes, or blue–white–red for signed differences.

@@ -110,6 +110,9 @@ fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
         Some(st) => {
             let wall = human(st.elapsed());
             match st.state.as_str() {
+                "finished" if st.reason == format!("{} generations", st.generations) => {
+                    format!("Finished after {gens}, the spec's limit. Wall time {wall}.")
+                }
                 "finished" => format!("Finished after {gens}: {}. Wall time {wall}.", st.reason),
                 "interrupted" => format!(
                     "Stopped after {gens} and {} of generation {done}'s units ({}); `bfqi-ga search --resume` continues it. Wall time so far {wall}.",
