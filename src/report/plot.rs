@@ -261,8 +261,20 @@ pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&s
             wide: false,
         });
     }
-    let zoom: Vec<Series> =
-        series.iter().filter(|s| s.wide || s.color == 2).map(|s| Series { wide: false, ..s.clone() }).collect();
+    // The reference joins the zoom only when it is near the best so far (within a tenth of the
+    // population's spread); otherwise it would squash the zoom back to the full scale.
+    let (_, _, y0, y1) = bounds(&series);
+    let near = |f: f64| rows.iter().filter_map(|r| r.best_so_far).all(|b| (b - f).abs() <= 0.1 * (y1 - y0));
+    let reference_near = reference.is_some_and(|(_, f)| near(f));
+    let zoom: Vec<Series> = series
+        .iter()
+        .filter(|s| s.wide || (s.color == 2 && reference_near))
+        .map(|s| Series { wide: false, ..s.clone() })
+        .collect();
+    let zoom_title = match reference {
+        Some((label, f)) if !reference_near => format!("best so far, zoomed ({label}, {f:.2}, off this scale)"),
+        _ => "best so far, zoomed".to_string(),
+    };
     let title = format!("GA fitness — {env}");
     let y = "fitness (mean score)";
     const TALL: (u32, u32) = (SIZE.0, SIZE.1 + 300);
@@ -273,12 +285,12 @@ pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&s
         &|a| {
             let (top, bottom) = a.split_vertically(split);
             draw_lines(&top, &title, "generation", y, &series, false)?;
-            draw_lines(&bottom, "best so far, zoomed", "generation", y, &zoom, false)
+            draw_lines(&bottom, &zoom_title, "generation", y, &zoom, false)
         },
         &|a| {
             let (top, bottom) = a.split_vertically(split);
             draw_lines(&top, &title, "generation", y, &series, false)?;
-            draw_lines(&bottom, "best so far, zoomed", "generation", y, &zoom, false)
+            draw_lines(&bottom, &zoom_title, "generation", y, &zoom, false)
         },
     )
 }
