@@ -13,13 +13,14 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches")
 }
 
-/// Committed search run directories (those with a spec.json), by name.
+/// Committed search run directories with a report (a spec.json and a report.md; a search
+/// committed before its first generation ended has neither records nor report yet), by name.
 fn searches() -> Vec<(String, PathBuf)> {
     let mut out: Vec<(String, PathBuf)> = std::fs::read_dir(root())
         .unwrap()
         .flatten()
         .map(|e| e.path())
-        .filter(|p| p.join("spec.json").is_file())
+        .filter(|p| p.join("spec.json").is_file() && p.join("report.md").is_file())
         .map(|p| (p.file_name().unwrap().to_string_lossy().into_owned(), p))
         .collect();
     out.sort();
