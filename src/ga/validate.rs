@@ -226,11 +226,16 @@ impl Validation {
         })
     }
 
-    /// The thesis optimum's fitness under this search's fitness, when it was scored.
-    pub fn thesis_fitness(&self, env: &str) -> Option<f64> {
+    /// The thesis optimum's entry, when it was scored (as itself or among the top settings).
+    pub fn thesis_entry(&self, env: &str) -> Option<&Entry> {
         let (t, _) = TunedConfig::resolve("thesis", env).ok()?;
         let id = setting_id(&Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience });
-        self.entries.iter().find(|e| e.setting == id)?.fitness
+        self.entries.iter().find(|e| e.setting == id)
+    }
+
+    /// The thesis optimum's fitness under this search's fitness, when it was scored.
+    pub fn thesis_fitness(&self, env: &str) -> Option<f64> {
+        self.thesis_entry(env)?.fitness
     }
 
     /// The validation as a Markdown section of the search's report.

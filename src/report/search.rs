@@ -7,7 +7,7 @@ use super::plot::FitnessRow;
 use super::stats::{Summary, interval, summarize};
 use crate::error::{Error, Result};
 use crate::ga::search::{GenerationRecord, RunState, describe, load_spec};
-use crate::ga::units::{Evaluator, setting_id, unit_id};
+use crate::ga::units::{Evaluator, unit_id};
 use crate::ga::validate::{self, Validation};
 use crate::progress::human;
 use crate::spec::Spec;
@@ -201,16 +201,7 @@ pub fn write(dir: &Path) -> Result<usize> {
 /// validation datasets.
 fn side_by_side(v: &Validation, env: &str) -> String {
     let Some(ours) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
-    let Some(thesis) = crate::tuned::TunedConfig::resolve("thesis", env).ok().and_then(|(t, _)| {
-        let id = setting_id(&crate::ga::chromosome::Decoded {
-            activation: t.activation,
-            delta_min: t.delta_min,
-            patience: t.patience,
-        });
-        v.entries.iter().find(|e| e.setting == id)
-    }) else {
-        return String::new();
-    };
+    let Some(thesis) = v.thesis_entry(env) else { return String::new() };
     let n = ours.search_scores.len().max(ours.validation_scores.len());
     let mut md = String::from(
         "\n### GA optimum vs the thesis optimum, dataset by dataset\n\nScores per dataset; mean ± 95 % interval.\n\n",
