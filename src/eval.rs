@@ -6,7 +6,7 @@
 //! chromosome are scored on the same episodes (paired comparisons).
 
 use crate::env::{Env, MAX_STATE, ScoreKind, draw_box};
-use crate::rng::{self, stream};
+use crate::rng::{self, Rng, stream};
 use serde::{Deserialize, Serialize};
 
 /// The result of evaluating a policy.
@@ -26,39 +26,89 @@ pub fn eval_seed(master: u64, index: usize) -> u64 {
 /// Runs `policy` (observation → index into [`Env::actions`]) on the evaluation episodes of `env`.
 pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_seed: u64) -> Score {
     let proto = env.eval();
-    let (sd, od) = (env.state_dim(), env.obs_dim());
-    let actions = env.actions();
     let (mut total_score, mut total_steps) = (0.0, 0.0);
     for e in 0..proto.episodes {
         let mut rng = stream(eval_seed, "episode", &[e as u64]);
         let mut s = [0.0; MAX_STATE];
-        let mut next = [0.0; MAX_STATE];
-        let mut obs = [0.0; MAX_STATE];
-        draw_box(&proto.start, &mut rng, &mut s[..sd]);
-        let (mut sum, mut discount, mut steps) = (0.0, 1.0, 0usize);
-        for _ in 0..proto.steps {
-            env.observe(&s[..sd], &mut obs[..od]);
-            let a = actions[policy(&obs[..od])];
-            let o = env.step(&s[..sd], a, &mut rng, &mut next[..sd]);
-            sum += match proto.score {
-                ScoreKind::DiscountedReturn => discount * o.reward,
-                _ => o.reward,
-            };
-            discount *= env.gamma();
-            steps += 1;
-            s = next;
-            if o.failed {
-                break;
-            }
-        }
-        total_score += match proto.score {
-            ScoreKind::MeanRewardPerStep => sum / steps as f64,
-            ScoreKind::Return | ScoreKind::DiscountedReturn => sum,
-        };
-        total_steps += steps as f64;
+        draw_box(&proto.start, &mut rng, &mut s[..env.state_dim()]);
+        let ep = episode(env, policy, &mut rng, &s[..env.state_dim()], proto.steps, |_| {});
+        total_score += ep.score;
+        total_steps += ep.steps as f64;
     }
     let n = proto.episodes as f64;
     Score { score: total_score / n, steps: total_steps / n }
+}
+
+/// One step of an episode, as [`episode`] shows it to its observer.
+#[derive(Debug, Clone, Copy)]
+pub struct StepView<'a> {
+    /// 0-based step index.
+    pub t: usize,
+    /// The hidden state the action was taken in.
+    pub state: &'a [f64],
+    /// Index of the action taken (into [`Env::actions`]).
+    pub action: usize,
+    /// The transition's reward.
+    pub reward: f64,
+    /// The state reached.
+    pub next: &'a [f64],
+    /// Whether the state reached is a failure (the episode ends there).
+    pub failed: bool,
+}
+
+/// What one episode produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Episode {
+    /// The protocol's score of this episode (see [`ScoreKind`]).
+    pub score: f64,
+    /// Steps taken.
+    pub steps: usize,
+    /// Whether it ended in a failure.
+    pub failed: bool,
+}
+
+/// Runs one episode of at most `max_steps` steps from `start`, drawing the environment's noise from
+/// `rng`, scored under the environment's evaluation protocol; `observe` sees every step. The
+/// evaluation protocol and the rollouts share this loop, so a rollout of an evaluation episode
+/// reproduces its score exactly.
+pub fn episode(
+    env: &dyn Env,
+    policy: &mut dyn FnMut(&[f64]) -> usize,
+    rng: &mut Rng,
+    start: &[f64],
+    max_steps: usize,
+    mut observe: impl FnMut(StepView<'_>),
+) -> Episode {
+    let kind = env.eval().score;
+    let (sd, od) = (env.state_dim(), env.obs_dim());
+    let actions = env.actions();
+    let mut s = [0.0; MAX_STATE];
+    let mut next = [0.0; MAX_STATE];
+    let mut obs = [0.0; MAX_STATE];
+    s[..sd].copy_from_slice(start);
+    let (mut sum, mut discount, mut steps, mut failed) = (0.0, 1.0, 0usize, false);
+    for t in 0..max_steps {
+        env.observe(&s[..sd], &mut obs[..od]);
+        let a = policy(&obs[..od]);
+        let o = env.step(&s[..sd], actions[a], rng, &mut next[..sd]);
+        sum += match kind {
+            ScoreKind::DiscountedReturn => discount * o.reward,
+            _ => o.reward,
+        };
+        observe(StepView { t, state: &s[..sd], action: a, reward: o.reward, next: &next[..sd], failed: o.failed });
+        discount *= env.gamma();
+        steps += 1;
+        s = next;
+        if o.failed {
+            failed = true;
+            break;
+        }
+    }
+    let score = match kind {
+        ScoreKind::MeanRewardPerStep => sum / steps.max(1) as f64,
+        ScoreKind::Return | ScoreKind::DiscountedReturn => sum,
+    };
+    Episode { score, steps, failed }
 }
 
 #[cfg(test)]

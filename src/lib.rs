@@ -19,6 +19,7 @@ pub mod learn;
 pub mod progress;
 pub mod report;
 pub mod rng;
+pub mod rollout;
 pub mod spec;
 pub mod store;
 pub mod tuned;

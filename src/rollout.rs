@@ -1,0 +1,224 @@
+//! Rollouts: the greedy policy of a Q-function, step by step (`bfqi-ga rollout` and `evaluate`).
+//!
+//! A rollout runs the same episode loop as the evaluation protocol ([`crate::eval::episode`]) and
+//! records what the protocol only sums: every state, the action taken, its reward and the Q value
+//! of every action. Start states come from a [`Start`] rule and noise from the stream
+//! `(eval_seed, "episode", e)`, so with [`Start::Eval`] and a run's evaluation seed, episode `e` is
+//! exactly the one the run scored.
+
+use crate::env::{EnvConfig, MAX_STATE, draw_box};
+use crate::eval::{Episode, episode};
+use crate::learn::actions::argmax;
+use crate::report::stats::{Summary, summarize};
+use crate::rng::stream;
+use serde::{Deserialize, Serialize};
+
+/// Where an episode starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Start {
+    /// The evaluation protocol's start box (the episodes a run is scored on).
+    Eval,
+    /// Every state variable 0 (the pendulum hangs at the top, the bicycle heads along x).
+    Zero,
+    /// The dataset start box: wider than the evaluation's for cart-pole, random headings for the
+    /// bicycle, the same as the evaluation's for the pendulum.
+    Random,
+}
+
+impl Start {
+    /// Draws a start state into `s`.
+    pub fn draw(self, env: &EnvConfig, rng: &mut crate::rng::Rng, s: &mut [f64]) {
+        match self {
+            Start::Eval => draw_box(&env.env().eval().start, rng, s),
+            Start::Zero => s.fill(0.0),
+            Start::Random => env.env().dataset_start(rng, s),
+        }
+    }
+}
+
+/// One step of a rollout.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Step {
+    /// The hidden state the action was taken in.
+    pub state: Vec<f64>,
+    /// Index of the action taken (into the environment's actions).
+    pub action: usize,
+    /// The reward of the transition.
+    pub reward: f64,
+    /// Q of every action in `state` (the greedy action is the first maximum).
+    pub q: Vec<f64>,
+}
+
+/// One episode of the greedy policy.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trajectory {
+    /// Episode index (its noise stream).
+    pub episode: usize,
+    /// Every step, in order.
+    pub steps: Vec<Step>,
+    /// The state after the last step.
+    pub last: Vec<f64>,
+    /// The episode's score under the evaluation protocol.
+    pub score: f64,
+    /// Whether it ended in a failure.
+    pub failed: bool,
+}
+
+/// Runs `episodes` episodes of the greedy policy of `q` (observation → Q of every action) from
+/// `start`, at most `steps` steps each, keeping every step when `record` is set.
+pub fn run(
+    env_cfg: &EnvConfig,
+    q: &mut dyn FnMut(&[f64], &mut [f64]),
+    eval_seed: u64,
+    episodes: usize,
+    start: Start,
+    steps: usize,
+    record: bool,
+) -> Vec<(Episode, Option<Trajectory>)> {
+    let env = env_cfg.env();
+    let (sd, na) = (env.state_dim(), env.actions().len());
+    let mut out = Vec::with_capacity(episodes);
+    for e in 0..episodes {
+        let mut rng = stream(eval_seed, "episode", &[e as u64]);
+        let mut s = [0.0; MAX_STATE];
+        start.draw(env_cfg, &mut rng, &mut s[..sd]);
+        let mut qv = vec![0.0; na];
+        // The policy leaves each step's Q values here; the observer pairs them with the step.
+        let mut qs: Vec<f64> = Vec::new();
+        let mut policy = |obs: &[f64]| {
+            q(obs, &mut qv);
+            if record {
+                qs.extend_from_slice(&qv);
+            }
+            argmax(&qv)
+        };
+        let mut kept: Vec<Step> = Vec::new();
+        let mut last = s[..sd].to_vec();
+        let ep = episode(env, &mut policy, &mut rng, &s[..sd], steps, |v| {
+            if record {
+                kept.push(Step { state: v.state.to_vec(), action: v.action, reward: v.reward, q: Vec::new() });
+                last.copy_from_slice(v.next);
+            }
+        });
+        let traj = record.then(|| {
+            for (st, qrow) in kept.iter_mut().zip(qs.chunks_exact(na)) {
+                st.q = qrow.to_vec();
+            }
+            Trajectory { episode: e, steps: kept, last, score: ep.score, failed: ep.failed }
+        });
+        out.push((ep, traj));
+    }
+    out
+}
+
+/// Scores of several episodes: mean and 95 % interval, steps, failures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Robustness {
+    /// Where the episodes started.
+    pub start: Start,
+    /// Episodes run.
+    pub episodes: usize,
+    /// Score over the episodes.
+    pub score: Summary,
+    /// Steps survived over the episodes.
+    pub steps: Summary,
+    /// Episodes that ended in a failure.
+    pub failures: usize,
+}
+
+/// Summarises episodes (at least one).
+pub fn robustness(start: Start, eps: &[Episode]) -> Option<Robustness> {
+    let scores: Vec<f64> = eps.iter().map(|e| e.score).collect();
+    let steps: Vec<f64> = eps.iter().map(|e| e.steps as f64).collect();
+    Some(Robustness {
+        start,
+        episodes: eps.len(),
+        score: summarize(&scores)?,
+        steps: summarize(&steps)?,
+        failures: eps.iter().filter(|e| e.failed).count(),
+    })
+}
+
+/// Simulated seconds per step of an environment.
+pub fn dt(env: &EnvConfig) -> f64 {
+    match env {
+        EnvConfig::Pendulum(c) => c.dt,
+        EnvConfig::Cartpole(c) => c.tau,
+        EnvConfig::Bicycle(c) => c.dt,
+    }
+}
+
+/// Names of the hidden-state variables, as plots and CSV headers show them.
+pub fn state_names(env: &EnvConfig) -> &'static [&'static str] {
+    match env {
+        EnvConfig::Pendulum(_) => &["theta", "theta_dot"],
+        EnvConfig::Cartpole(_) => &["x", "x_dot", "theta", "theta_dot"],
+        EnvConfig::Bicycle(_) => &["omega", "omega_dot", "theta", "theta_dot", "psi"],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::{eval_seed, evaluate};
+
+    /// Push toward the side the pole is falling to (a decent cart-pole controller) as Q values.
+    fn pd(o: &[f64], q: &mut [f64]) {
+        let push = o[2] + 0.5 * o[3] + 0.01 * o[0] + 0.05 * o[1];
+        q[0] = -push;
+        q[1] = push;
+    }
+
+    #[test]
+    fn eval_rollouts_reproduce_the_protocol_score() {
+        for name in crate::env::NAMES {
+            let c = EnvConfig::by_name(name).unwrap();
+            let na = c.env().actions().len();
+            // A fixed, state-dependent policy for every environment.
+            let mut q = |o: &[f64], q: &mut [f64]| {
+                for (j, v) in q.iter_mut().enumerate() {
+                    *v = ((j as f64 + 1.0) * o[0]).sin();
+                }
+                if name == "cartpole" {
+                    pd(o, q)
+                }
+            };
+            let seed = eval_seed(7, 1);
+            let protocol = c.env().eval();
+            let eps = run(&c, &mut q, seed, protocol.episodes, Start::Eval, protocol.steps, true);
+            let mean = eps.iter().map(|(e, _)| e.score).sum::<f64>() / eps.len() as f64;
+            let mut policy = |o: &[f64]| {
+                let mut v = vec![0.0; na];
+                q(o, &mut v);
+                argmax(&v)
+            };
+            let s = evaluate(c.env(), &mut policy, seed);
+            assert_eq!(mean.to_bits(), s.score.to_bits(), "{name}");
+            for (e, t) in &eps {
+                let t = t.as_ref().unwrap();
+                assert_eq!(t.steps.len(), e.steps);
+                assert!(t.steps.iter().all(|s| s.q.len() == na && s.action == argmax(&s.q)));
+            }
+        }
+    }
+
+    #[test]
+    fn start_rules_differ_where_the_boxes_do() {
+        let c = EnvConfig::by_name("bicycle").unwrap();
+        let mut s = [0.0; 5];
+        let mut rng = stream(1, "test", &[]);
+        Start::Random.draw(&c, &mut rng, &mut s);
+        assert!(s[4] != 0.0 && s[..4].iter().all(|&v| v == 0.0), "random heading only: {s:?}");
+        Start::Eval.draw(&c, &mut rng, &mut s);
+        assert_eq!(s, [0.0; 5]);
+        let c = EnvConfig::by_name("cartpole").unwrap();
+        let mut wide = 0.0f64;
+        for _ in 0..50 {
+            let mut s = [0.0; 4];
+            Start::Random.draw(&c, &mut rng, &mut s);
+            wide = wide.max(s[0].abs());
+        }
+        assert!(wide > 0.5, "dataset starts span the track: {wide}");
+    }
+}
