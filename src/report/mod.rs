@@ -3,5 +3,6 @@
 pub mod claims;
 pub mod comparison;
 pub mod plot;
+pub mod rollout;
 pub mod search;
 pub mod stats;

@@ -9,7 +9,8 @@ use std::sync::Once;
 
 static FONT: Once = Once::new();
 
-fn ensure_font() {
+/// Registers the embedded font as "sans-serif" (once): every drawing's text uses it.
+pub(crate) fn ensure_font() {
     FONT.call_once(|| {
         let bytes: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
         for style in [FontStyle::Normal, FontStyle::Bold] {
@@ -37,7 +38,8 @@ pub struct Series {
     pub wide: bool,
 }
 
-fn color(i: usize) -> RGBColor {
+/// Colour `i` of the plots' palette (cycling).
+pub(crate) fn color(i: usize) -> RGBColor {
     const P: [RGBColor; 6] = [
         RGBColor(31, 119, 180),
         RGBColor(214, 39, 40),
@@ -63,7 +65,7 @@ pub fn render(
 }
 
 /// [`render`] at `size` pixels.
-fn render_sized(
+pub(crate) fn render_sized(
     base: &Path,
     size: (u32, u32),
     draw: &dyn Fn(&DrawingArea<BitMapBackend<'_>, Shift>) -> Result<()>,
@@ -91,7 +93,8 @@ fn render_sized(
     crate::store::write_atomic(&svg_path, |w| std::io::Write::write_all(w, svg.as_bytes()))
 }
 
-fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
+/// x and y ranges covering every point and band of `series` (y padded by 6 %), never empty.
+pub(crate) fn bounds(series: &[Series]) -> (f64, f64, f64, f64) {
     let xs = series.iter().flat_map(|s| s.points.iter().map(|p| p.0).chain(s.band.iter().map(|b| b.0)));
     let ys = series.iter().flat_map(|s| s.points.iter().map(|p| p.1).chain(s.band.iter().flat_map(|b| [b.1, b.2])));
     let (mut x0, mut x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
