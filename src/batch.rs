@@ -51,6 +51,9 @@ pub struct SearchJob {
     /// Overrides.
     #[serde(default)]
     pub stall_generations: Option<usize>,
+    /// Tuned configs placed in generation 0 (`thesis` or a best.json), as `search --seed-config`.
+    #[serde(default)]
+    pub seed_config: Vec<String>,
 }
 
 /// A comparison job of a plan.
@@ -305,6 +308,7 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
                         episodes: s.episodes,
                         seed: s.seed,
                         stall_generations: s.stall_generations,
+                        seed_config: s.seed_config.clone(),
                     };
                     search::prepare(&s.search, &s.presets, &o, Some(&job_dir), Path::new("results"))?;
                 }

@@ -40,6 +40,12 @@ pub enum Command {
     Reproduce(ReproduceArgs),
     /// Re-score a search's top settings and the thesis optimum on fresh validation datasets.
     Validate(ValidateArgs),
+    /// Score a given config (thesis optimum or a best.json) under a search's fitness.
+    Fitness(FitnessArgs),
+    /// Run a greedy policy and draw it: trajectory CSV, plots, animated GIF.
+    Rollout(Box<RolloutArgs>),
+    /// Score a saved model on more or other start states (mean and 95 % interval).
+    Evaluate(EvaluateArgs),
     /// Run a plan of searches and comparisons (overnight batches).
     Batch(BatchArgs),
     /// One line per run under results/: state, generation, best fitness.
@@ -141,6 +147,10 @@ pub struct RunArgs {
     /// Also write run.json and run.csv into this directory (atomically).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Save each dataset's last Q-function into this directory (`dataset-<i>.model`), for
+    /// `rollout` and `evaluate`.
+    #[arg(long, value_name = "DIR")]
+    pub save_model: Option<PathBuf>,
 }
 
 /// Where units of work run.
@@ -234,6 +244,10 @@ pub struct SearchArgs {
     /// Run directory (default: results/<env>/search-<timestamp>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Place a given config in generation 0 (`thesis` or a best.json; repeatable), in place of a
+    /// random individual; recorded as `seeded` in generations.jsonl.
+    #[arg(long, value_name = "thesis|FILE", conflicts_with = "resume")]
+    pub seed_config: Vec<String>,
     /// No progress output (the run directory still records everything).
     #[arg(long)]
     pub quiet: bool,
@@ -330,6 +344,74 @@ pub struct ReproduceArgs {
     pub best: PathBuf,
 }
 
+/// `bfqi-ga fitness`.
+#[derive(Debug, Args)]
+pub struct FitnessArgs {
+    /// Environment name (uses searches/<ENV>.json) or a spec file (e.g. a run directory's spec.json).
+    pub env: String,
+    /// The config to score: `thesis` (the thesis's GA optimum) or a best.json.
+    #[arg(long, value_name = "thesis|FILE")]
+    pub tuned: String,
+    /// Print one JSON document instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `bfqi-ga rollout`.
+#[derive(Debug, Args)]
+pub struct RolloutArgs {
+    /// A model file (`run --save-model`), or with --tuned the environment name or spec file whose
+    /// search fitness trains it (optional when the tuned config is a search's best.json).
+    pub target: Option<String>,
+    /// Train this config first (`thesis` or a best.json), as the search's unit on --dataset did.
+    #[arg(long, value_name = "thesis|FILE")]
+    pub tuned: Option<String>,
+    /// With --tuned: the search dataset to train on.
+    #[arg(long, default_value_t = 0, requires = "tuned")]
+    pub dataset: usize,
+    /// Episodes (default: the environment's evaluation episodes).
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Where episodes start: the evaluation box, all zero, or the dataset box.
+    #[arg(long, value_enum, default_value = "eval")]
+    pub start: crate::rollout::Start,
+    /// Steps per episode (default: the evaluation protocol's).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Draw plots and a GIF for at most this many episodes (the CSV has them all).
+    #[arg(long, default_value_t = 3)]
+    pub draw: usize,
+    /// Frames per GIF at most (long episodes show every n-th step).
+    #[arg(long, default_value_t = 200)]
+    pub frames: usize,
+    /// Output directory (default: results/<env>/rollout-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// With --tuned: also save the trained Q-function to this file.
+    #[arg(long, value_name = "FILE", requires = "tuned")]
+    pub save_model: Option<PathBuf>,
+}
+
+/// `bfqi-ga evaluate`.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// A model file (`run --save-model` or `rollout --save-model`).
+    pub model: PathBuf,
+    /// Episodes.
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// Where episodes start: the evaluation box, all zero, or the dataset box (random bicycle
+    /// headings, wide cart-pole starts).
+    #[arg(long, value_enum, default_value = "random")]
+    pub start: crate::rollout::Start,
+    /// Steps per episode (default: the evaluation protocol's).
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// Print one JSON document instead of the text.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `bfqi-ga validate`.
 #[derive(Debug, Args)]
 pub struct ValidateArgs {
@@ -404,6 +486,9 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Search(a) => cmd_search(*a),
         Command::Reproduce(a) => cmd_reproduce(a),
         Command::Validate(a) => cmd_validate(a),
+        Command::Fitness(a) => cmd_fitness(a),
+        Command::Rollout(a) => cmd_rollout(*a),
+        Command::Evaluate(a) => cmd_evaluate(a),
         Command::Status(a) => cmd_status(a),
         Command::Compare(a) => cmd_compare(*a),
         Command::Report(a) => cmd_report(a),
@@ -527,7 +612,10 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             .expect("valid template")
             .progress_chars("=> "),
     );
-    let report = experiment::run(&cfg, &|_, _| bar.inc(1))?;
+    if let Some(dir) = &a.save_model {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let report = experiment::run_saving(&cfg, a.save_model.as_deref(), &|_, _| bar.inc(1))?;
     bar.finish_and_clear();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -552,6 +640,9 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         let csv = report.csv();
         store::write_atomic(&dir.join("run.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
         eprintln!("wrote {}", dir.display());
+    }
+    if let Some(dir) = &a.save_model {
+        eprintln!("models: {}", experiment::model_path(dir, 0).with_file_name("dataset-<i>.model").display());
     }
     let diverged = report.datasets.iter().filter(|d| d.record.diverged.is_some()).count();
     if diverged > 0 {
@@ -620,6 +711,7 @@ fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
             episodes: a.episodes,
             seed: a.seed,
             stall_generations: a.stall_generations,
+            seed_config: a.seed_config.clone(),
         };
         let name = a.env.as_deref().expect("clap requires ENV without --resume");
         search::prepare(name, &presets, &o, a.out.as_deref(), Path::new("results"))?
@@ -661,6 +753,161 @@ fn cmd_reproduce(a: ReproduceArgs) -> Result<ExitCode> {
         }
         Ok(ExitCode::from(1))
     }
+}
+
+fn cmd_fitness(a: FitnessArgs) -> Result<ExitCode> {
+    let (spec, spec_from) = Spec::resolve(&a.env)?;
+    let (t, from) = crate::tuned::TunedConfig::resolve(&a.tuned, spec.env.env().name())?;
+    let r = crate::ga::fitness::score(&spec, &t, &from)?;
+    let scores: Vec<Option<f64>> = r.units.iter().map(|u| u.score).collect();
+    if a.json {
+        let doc = serde_json::json!({
+            "spec": spec_from.display().to_string(),
+            "spec_hash": spec.hash(),
+            "tuned": from.display().to_string(),
+            "setting": r.setting,
+            "scores": scores,
+            "fitness": r.fitness,
+            "notes": r.notes,
+        });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let s = &spec.search;
+    println!(
+        "{} ({}) under the fitness of {}: {} on {} search datasets, K={}, {} episodes each",
+        from.display(),
+        crate::ga::search::describe(&r.setting),
+        spec_from.display(),
+        s.algorithm.name(),
+        s.datasets,
+        s.iterations,
+        s.episodes
+    );
+    for u in &r.units {
+        let score = u.score.map_or("−∞ (diverged)".to_string(), |v| format!("{v:.4}"));
+        println!("  dataset {:>2}: {score:>12}   {:>7} epochs", u.dataset, u.epochs);
+    }
+    let finite: Vec<f64> = scores.iter().flatten().copied().collect();
+    let summary = crate::report::stats::summarize(&finite).filter(|_| r.fitness.is_some());
+    println!(
+        "fitness {}  (95 % interval over datasets; exact {})",
+        crate::report::stats::interval(summary, 4),
+        r.fitness.map_or("−∞".into(), |f| format!("{f:?}"))
+    );
+    if let Some(f) = t.fitness.filter(|_| t.spec.as_ref().is_some_and(|ts| ts.hash() == spec.hash())) {
+        let same = r.fitness.map(f64::to_bits) == Some(f.to_bits());
+        println!("recorded in {}: {f:?} ({})", from.display(), if same { "identical" } else { "DIFFERENT" });
+    }
+    for n in &r.notes {
+        println!("note: {n}");
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_rollout(a: RolloutArgs) -> Result<ExitCode> {
+    anyhow::ensure!(a.frames >= 2, "invalid --frames = {}: must be ≥ 2", a.frames);
+    let (model, label) = match &a.tuned {
+        None => {
+            let path = a.target.as_deref().context("give a model file, or --tuned thesis|FILE with an environment")?;
+            (crate::model::load(Path::new(path))?, path.to_string())
+        }
+        Some(tuned) => {
+            let tuned_file =
+                (tuned != "thesis").then(|| crate::tuned::TunedConfig::load(Path::new(tuned))).transpose()?;
+            let spec = match (&a.target, tuned_file.as_ref().and_then(|t| t.spec.clone())) {
+                (Some(t), _) => Spec::resolve(t)?.0,
+                (None, Some(spec)) => spec,
+                (None, None) => {
+                    anyhow::bail!("give the environment or spec: bfqi-ga rollout <ENV|SPEC> --tuned {tuned}")
+                }
+            };
+            let (t, from) = crate::tuned::TunedConfig::resolve(tuned, spec.env.env().name())?;
+            eprintln!(
+                "training {} on search dataset {} as its search unit did ({} K={})…",
+                crate::ga::search::describe(&crate::ga::fitness::setting_of(&t)),
+                a.dataset,
+                spec.search.algorithm.name(),
+                spec.search.iterations
+            );
+            let (_, m) = crate::ga::fitness::train(&spec, &t, &from, a.dataset)?;
+            if let Some(p) = &a.save_model {
+                crate::model::save(p, &m)?;
+                eprintln!("saved the Q-function to {}", p.display());
+            }
+            (m, format!("{} trained on search dataset {}", from.display(), a.dataset))
+        }
+    };
+    let protocol = model.info.env.env().eval();
+    let req = crate::report::policy::Request {
+        episodes: a.episodes.unwrap_or(protocol.episodes),
+        start: a.start,
+        steps: a.steps.unwrap_or(protocol.steps),
+        draw: a.draw,
+        frames: a.frames,
+    };
+    anyhow::ensure!(req.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    anyhow::ensure!(req.steps >= 1, "invalid --steps = 0: must be ≥ 1");
+    let env = model.info.env.env().name();
+    let dir = match &a.out {
+        Some(d) => d.clone(),
+        None => store::new_run_dir(&Path::new("results").join(env), "rollout-")?,
+    };
+    let s = crate::report::policy::write(&dir, &model, &label, &req)?;
+    println!("{}", crate::rollout::describe_model(&model.info, Path::new(&label)));
+    for e in &s.episodes {
+        let gif = e
+            .gif
+            .as_ref()
+            .map_or(String::new(), |g| format!("  {} ({} frames, {} KiB)", g.file, g.frames, g.bytes / 1024));
+        println!(
+            "  episode {:>3}: score {:>10.4}  {:>5} steps{}{gif}",
+            e.episode,
+            e.score,
+            e.steps,
+            if e.failed { "  failed" } else { "" }
+        );
+    }
+    if a.start == crate::rollout::Start::Eval && req.steps == protocol.steps && req.episodes >= protocol.episodes {
+        // The first protocol.episodes episodes are the ones the run was scored on.
+        let mean = s.episodes[..protocol.episodes].iter().map(|e| e.score).sum::<f64>() / protocol.episodes as f64;
+        if let Some(rec) = model.info.score {
+            let same = mean.to_bits() == rec.to_bits();
+            println!(
+                "evaluation episodes: {mean:?}, recorded {rec:?} ({})",
+                if same { "identical" } else { "DIFFERENT" }
+            );
+        }
+    }
+    println!("wrote {}", dir.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_evaluate(a: EvaluateArgs) -> Result<ExitCode> {
+    anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    let m = crate::model::load(&a.model)?;
+    let steps = a.steps.unwrap_or(m.info.env.env().eval().steps);
+    anyhow::ensure!(steps >= 1, "invalid --steps = 0: must be ≥ 1");
+    let eps = crate::rollout::run(&m.info.env, &|o, q| m.q(o, q), m.info.eval_seed, a.episodes, a.start, steps, false);
+    let eps: Vec<crate::eval::Episode> = eps.into_iter().map(|(e, _)| e).collect();
+    let r = crate::rollout::robustness(a.start, &eps).expect("at least one episode");
+    if a.json {
+        let doc =
+            serde_json::json!({ "model": a.model.display().to_string(), "info": m.info, "steps": steps, "result": r });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("{}", crate::rollout::describe_model(&m.info, &a.model));
+    println!(
+        "{} episodes from {} starts, ≤ {steps} steps: score {}, steps {}, failures {}/{}",
+        r.episodes,
+        serde_json::to_value(a.start)?.as_str().unwrap_or("?"),
+        crate::report::stats::interval(Some(r.score), 4),
+        crate::report::stats::interval(Some(r.steps), 1),
+        r.failures,
+        r.episodes
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 fn cmd_validate(a: ValidateArgs) -> Result<ExitCode> {

@@ -8,14 +8,16 @@ use crate::dataset::{self, dataset_seed};
 use crate::env::EnvConfig;
 use crate::error::{Result, ensure};
 use crate::eval::eval_seed;
-use crate::fqi::{self, Algorithm, FqiSettings, IterationRecord, RunRecord};
+use crate::fqi::{Algorithm, FqiSettings, IterationRecord, RunRecord};
 use crate::learn::LearnerConfig;
 use crate::learn::actions::{ActionEncoding, Encoded};
+use crate::model::{self, Model, ModelInfo};
 use crate::report::stats::{Summary, summarize};
 use crate::rng;
 use crate::spec::Preset;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
 
 /// Everything that determines a run's results.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -67,6 +69,12 @@ impl RunConfig {
         ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")
     }
 
+    /// A short hash of the configuration's canonical JSON (recorded in model files).
+    pub fn hash(&self) -> String {
+        let text = serde_json::to_string(self).expect("a run configuration serialises");
+        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+    }
+
     fn settings(&self) -> FqiSettings {
         FqiSettings { algorithm: self.algorithm, iterations: self.iterations, eval_every: self.eval_every }
     }
@@ -112,21 +120,68 @@ pub struct RunReport {
 
 /// Runs the configured algorithm on dataset `index` (collecting it first).
 pub fn run_dataset(cfg: &RunConfig, index: usize, progress: impl FnMut(&IterationRecord)) -> Result<DatasetResult> {
+    run_dataset_saving(cfg, index, None, progress)
+}
+
+/// [`run_dataset`], also writing the last Q-function to `models/dataset-<index>.model` when
+/// `models` is given (not for a diverged dataset).
+pub fn run_dataset_saving(
+    cfg: &RunConfig,
+    index: usize,
+    models: Option<&Path>,
+    progress: impl FnMut(&IterationRecord),
+) -> Result<DatasetResult> {
     let env = cfg.env.env();
     let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, "compare", index))?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions)?;
     let fit_seed = rng::derive(cfg.seed, "fit", &[index as u64]);
-    let record =
-        fqi::run_with(env, &data, &enc, &cfg.learner, cfg.settings(), fit_seed, eval_seed(cfg.seed, index), progress)?;
+    let eval_seed = eval_seed(cfg.seed, index);
+    let (record, q) =
+        model::run_keeping(env, &data, &enc, &cfg.learner, cfg.settings(), fit_seed, eval_seed, progress)?;
+    if let (Some(dir), Some(q)) = (models, q) {
+        let (tool_version, commit) = model::build_stamp();
+        let info = ModelInfo {
+            tool_version,
+            commit,
+            source: "run".into(),
+            spec_hash: cfg.hash(),
+            env: cfg.env.clone(),
+            algorithm: cfg.algorithm,
+            learner: cfg.learner.clone(),
+            encoding: cfg.actions,
+            actions: env.actions().to_vec(),
+            iterations: cfg.iterations,
+            dataset: index,
+            eval_seed,
+            score: record.final_score(),
+        };
+        model::save(&model_path(dir, index), &Model { info, q })?;
+    }
     Ok(DatasetResult { dataset: index, transitions: data.len(), record })
+}
+
+/// Where `run --save-model DIR` writes dataset `index`'s Q-function.
+pub fn model_path(dir: &Path, index: usize) -> PathBuf {
+    dir.join(format!("dataset-{index}.model"))
 }
 
 /// Runs every dataset of `cfg` in parallel. `progress(dataset, record)` is called after each
 /// iteration of each dataset (from worker threads).
 pub fn run(cfg: &RunConfig, progress: &(dyn Fn(usize, &IterationRecord) + Sync)) -> Result<RunReport> {
+    run_saving(cfg, None, progress)
+}
+
+/// [`run`], also saving each dataset's last Q-function into `models` (see [`run_dataset_saving`]).
+pub fn run_saving(
+    cfg: &RunConfig,
+    models: Option<&Path>,
+    progress: &(dyn Fn(usize, &IterationRecord) + Sync),
+) -> Result<RunReport> {
     cfg.validate()?;
-    let datasets: Vec<DatasetResult> =
-        (0..cfg.datasets).into_par_iter().map(|i| run_dataset(cfg, i, |r| progress(i, r))).collect::<Result<_>>()?;
+    let datasets: Vec<DatasetResult> = (0..cfg.datasets)
+        .into_par_iter()
+        .map(|i| run_dataset_saving(cfg, i, models, |r| progress(i, r)))
+        .collect::<Result<_>>()?;
     let summary = summarize_iterations(&datasets, cfg.iterations);
     Ok(RunReport { config: cfg.clone(), datasets, summary })
 }

@@ -306,7 +306,15 @@ impl<'a, L: Learner> Fqi<'a, L> {
     }
 
     /// Runs every remaining iteration, calling `progress` after each.
-    pub fn run(mut self, mut progress: impl FnMut(&IterationRecord)) -> Result<RunRecord> {
+    pub fn run(self, progress: impl FnMut(&IterationRecord)) -> Result<RunRecord> {
+        self.run_keeping(progress).map(|(rec, _)| rec)
+    }
+
+    /// [`Fqi::run`], also returning the members of the last Q-function.
+    pub fn run_keeping(
+        mut self,
+        mut progress: impl FnMut(&IterationRecord),
+    ) -> Result<(RunRecord, Vec<QModel<L::Model>>)> {
         let mut rec = RunRecord { iterations: Vec::new(), diverged: None };
         while self.k < self.settings.iterations {
             match self.iterate()? {
@@ -320,7 +328,7 @@ impl<'a, L: Learner> Fqi<'a, L> {
                 }
             }
         }
-        Ok(rec)
+        Ok((rec, self.members))
     }
 }
 

@@ -11,6 +11,7 @@ use crate::eval::{Episode, episode};
 use crate::learn::actions::argmax;
 use crate::report::stats::{Summary, summarize};
 use crate::rng::stream;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Where an episode starts.
@@ -66,50 +67,59 @@ pub struct Trajectory {
 }
 
 /// Runs `episodes` episodes of the greedy policy of `q` (observation → Q of every action) from
-/// `start`, at most `steps` steps each, keeping every step when `record` is set.
+/// `start`, at most `steps` steps each, keeping every step when `record` is set. Episodes run in
+/// parallel; each has its own streams, so the results do not depend on the thread count.
 pub fn run(
     env_cfg: &EnvConfig,
-    q: &mut dyn FnMut(&[f64], &mut [f64]),
+    q: &(dyn Fn(&[f64], &mut [f64]) + Sync),
     eval_seed: u64,
     episodes: usize,
     start: Start,
     steps: usize,
     record: bool,
 ) -> Vec<(Episode, Option<Trajectory>)> {
+    (0..episodes).into_par_iter().map(|e| one(env_cfg, q, eval_seed, e, start, steps, record)).collect()
+}
+
+fn one(
+    env_cfg: &EnvConfig,
+    q: &(dyn Fn(&[f64], &mut [f64]) + Sync),
+    eval_seed: u64,
+    e: usize,
+    start: Start,
+    steps: usize,
+    record: bool,
+) -> (Episode, Option<Trajectory>) {
     let env = env_cfg.env();
     let (sd, na) = (env.state_dim(), env.actions().len());
-    let mut out = Vec::with_capacity(episodes);
-    for e in 0..episodes {
-        let mut rng = stream(eval_seed, "episode", &[e as u64]);
-        let mut s = [0.0; MAX_STATE];
-        start.draw(env_cfg, &mut rng, &mut s[..sd]);
-        let mut qv = vec![0.0; na];
-        // The policy leaves each step's Q values here; the observer pairs them with the step.
-        let mut qs: Vec<f64> = Vec::new();
-        let mut policy = |obs: &[f64]| {
-            q(obs, &mut qv);
-            if record {
-                qs.extend_from_slice(&qv);
-            }
-            argmax(&qv)
-        };
-        let mut kept: Vec<Step> = Vec::new();
-        let mut last = s[..sd].to_vec();
-        let ep = episode(env, &mut policy, &mut rng, &s[..sd], steps, |v| {
-            if record {
-                kept.push(Step { state: v.state.to_vec(), action: v.action, reward: v.reward, q: Vec::new() });
-                last.copy_from_slice(v.next);
-            }
-        });
-        let traj = record.then(|| {
-            for (st, qrow) in kept.iter_mut().zip(qs.chunks_exact(na)) {
-                st.q = qrow.to_vec();
-            }
-            Trajectory { episode: e, steps: kept, last, score: ep.score, failed: ep.failed }
-        });
-        out.push((ep, traj));
-    }
-    out
+    let mut rng = stream(eval_seed, "episode", &[e as u64]);
+    let mut s = [0.0; MAX_STATE];
+    start.draw(env_cfg, &mut rng, &mut s[..sd]);
+    let mut qv = vec![0.0; na];
+    // The policy leaves each step's Q values here; the observer pairs them with the step.
+    let mut qs: Vec<f64> = Vec::new();
+    let mut policy = |obs: &[f64]| {
+        q(obs, &mut qv);
+        if record {
+            qs.extend_from_slice(&qv);
+        }
+        argmax(&qv)
+    };
+    let mut kept: Vec<Step> = Vec::new();
+    let mut last = s[..sd].to_vec();
+    let ep = episode(env, &mut policy, &mut rng, &s[..sd], steps, |v| {
+        if record {
+            kept.push(Step { state: v.state.to_vec(), action: v.action, reward: v.reward, q: Vec::new() });
+            last.copy_from_slice(v.next);
+        }
+    });
+    let traj = record.then(|| {
+        for (st, qrow) in kept.iter_mut().zip(qs.chunks_exact(na)) {
+            st.q = qrow.to_vec();
+        }
+        Trajectory { episode: e, steps: kept, last, score: ep.score, failed: ep.failed }
+    });
+    (ep, traj)
 }
 
 /// Scores of several episodes: mean and 95 % interval, steps, failures.
@@ -138,6 +148,54 @@ pub fn robustness(start: Start, eps: &[Episode]) -> Option<Robustness> {
         steps: summarize(&steps)?,
         failures: eps.iter().filter(|e| e.failed).count(),
     })
+}
+
+/// The steps of `trajectories` as CSV: episode, step, time, every state variable, the action
+/// (index and value), the reward and the Q value of every action (`q_<index>`).
+pub fn csv(env: &EnvConfig, trajectories: &[Trajectory]) -> String {
+    let names = state_names(env);
+    let actions = env.env().actions();
+    let mut s = String::from("episode,step,time");
+    for n in names {
+        s.push_str(&format!(",{n}"));
+    }
+    s.push_str(",action,action_value,reward");
+    for j in 0..actions.len() {
+        s.push_str(&format!(",q_{j}"));
+    }
+    s.push('\n');
+    let dt = dt(env);
+    for t in trajectories {
+        for (k, st) in t.steps.iter().enumerate() {
+            s.push_str(&format!("{},{k},{:?}", t.episode, k as f64 * dt));
+            for v in &st.state {
+                s.push_str(&format!(",{v:?}"));
+            }
+            s.push_str(&format!(",{},{:?},{:?}", st.action, actions[st.action], st.reward));
+            for v in &st.q {
+                s.push_str(&format!(",{v:?}"));
+            }
+            s.push('\n');
+        }
+    }
+    s
+}
+
+/// One line naming a model and where it came from.
+pub fn describe_model(info: &crate::model::ModelInfo, path: &std::path::Path) -> String {
+    format!(
+        "{} · {} · {} with {} ({} member(s)) · from {}, dataset {}, K={}, recorded score {} · bfqi-ga {}",
+        path.display(),
+        info.env.env().name(),
+        info.algorithm.name(),
+        info.learner.short(),
+        if info.algorithm == crate::fqi::Algorithm::Bfqi { info.iterations } else { 1 },
+        info.source,
+        info.dataset,
+        info.iterations,
+        info.score.map_or("—".into(), |s| format!("{s:.4}")),
+        info.tool_version
+    )
 }
 
 /// Simulated seconds per step of an environment.
@@ -176,7 +234,7 @@ mod tests {
             let c = EnvConfig::by_name(name).unwrap();
             let na = c.env().actions().len();
             // A fixed, state-dependent policy for every environment.
-            let mut q = |o: &[f64], q: &mut [f64]| {
+            let q = |o: &[f64], q: &mut [f64]| {
                 for (j, v) in q.iter_mut().enumerate() {
                     *v = ((j as f64 + 1.0) * o[0]).sin();
                 }
@@ -186,7 +244,7 @@ mod tests {
             };
             let seed = eval_seed(7, 1);
             let protocol = c.env().eval();
-            let eps = run(&c, &mut q, seed, protocol.episodes, Start::Eval, protocol.steps, true);
+            let eps = run(&c, &q, seed, protocol.episodes, Start::Eval, protocol.steps, true);
             let mean = eps.iter().map(|(e, _)| e.score).sum::<f64>() / eps.len() as f64;
             let mut policy = |o: &[f64]| {
                 let mut v = vec![0.0; na];

@@ -143,6 +143,10 @@ pub struct SearchSpec {
     /// optimum) on fresh validation datasets; none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validate: Option<crate::ga::validate::ValidateRule>,
+    /// Chromosomes placed first in generation 0 in place of random ones (`search --seed-config`),
+    /// as Optuna's `enqueue_trial` does; none when absent.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub seeded: Vec<crate::ga::chromosome::Chromosome>,
 }
 
 impl SearchSpec {
@@ -169,6 +173,16 @@ impl SearchSpec {
             ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
         }
         self.prune.validate()?;
+        ensure(self.seeded.len() <= ga.population, "seeded", self.seeded.len(), "must not exceed ga.population")?;
+        for (i, c) in self.seeded.iter().enumerate() {
+            let b = self.genes.bounds();
+            ensure(
+                self.genes.contains(c),
+                &format!("seeded[{i}]"),
+                format!("{c:?}"),
+                &format!("must lie in the gene ranges {b:?}"),
+            )?;
+        }
         self.validate.as_ref().map_or(Ok(()), |v| v.validate())
     }
 }
@@ -299,11 +313,7 @@ impl Spec {
     /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.
     pub fn hash(&self) -> String {
         let text = serde_json::to_string(self).expect("a spec serialises");
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in text.bytes() {
-            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
-        }
-        format!("{h:016x}")
+        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
     }
 
     /// Deserialises and validates a JSON value; `origin` names it in errors.

@@ -150,6 +150,16 @@ impl Drop for RunLock {
     }
 }
 
+/// FNV-1a, 64 bits: the short content hash of spec hashes and file checksums (not cryptographic:
+/// it catches damage, not tampering).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+    }
+    h
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

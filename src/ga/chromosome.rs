@@ -100,6 +100,32 @@ pub fn decode(c: &Chromosome, ranges: &GeneRanges) -> Decoded {
     Decoded { activation: ranges.activations[act as usize], delta_min, patience: patience as usize }
 }
 
+/// The first chromosome inside `ranges` (genes in increasing order) that decodes to `setting`
+/// exactly (same activation, same δ_min bits, same patience), or `None` if the grid has none.
+pub fn encode(setting: &Decoded, ranges: &GeneRanges) -> Option<Chromosome> {
+    let b = ranges.bounds();
+    let act = ranges.activations.iter().position(|&a| a == setting.activation)? as i64;
+    let mut delta = None;
+    'delta: for b_d in b[2][0]..=b[2][1] {
+        for a_d in b[1][0]..=b[1][1] {
+            if decode(&[act, a_d, b_d, b[3][0], b[4][0]], ranges).delta_min.to_bits() == setting.delta_min.to_bits() {
+                delta = Some((a_d, b_d));
+                break 'delta;
+            }
+        }
+    }
+    let (a_d, b_d) = delta?;
+    for b_p in b[4][0]..=b[4][1] {
+        for a_p in b[3][0]..=b[3][1] {
+            let c = [act, a_d, b_d, a_p, b_p];
+            if decode(&c, ranges).patience == setting.patience {
+                return Some(c);
+            }
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -136,5 +162,24 @@ mod tests {
         let r = GeneRanges { b_patience: [-1, 1], ..GeneRanges::default() };
         assert_eq!(decode(&[0, 10, 3, 99, -1], &r).patience, 1);
         assert_eq!(decode(&[0, 10, 15, 99, 1], &r).delta_min, 10.0 / 1e15);
+    }
+
+    #[test]
+    fn encode_finds_a_chromosome_of_each_thesis_optimum_and_none_off_the_grid() {
+        let r = GeneRanges::default();
+        for c in [[0, 58, 2, 60, 2], [0, 60, 3, 45, 0], [0, 11, 3, 74, 1], [1, 61, 5, 71, 2], [2, 99, 8, 99, 2]] {
+            let d = decode(&c, &r);
+            let e = encode(&d, &r).unwrap();
+            assert!(r.contains(&e));
+            let back = decode(&e, &r);
+            assert_eq!(
+                (back.activation, back.delta_min.to_bits(), back.patience),
+                (d.activation, d.delta_min.to_bits(), d.patience)
+            );
+        }
+        let off = Decoded { activation: Activation::Tanh, delta_min: 0.123, patience: 5 };
+        assert_eq!(encode(&off, &r), None, "0.123 is not a·10^−b with two-digit a");
+        let off = Decoded { activation: Activation::Tanh, delta_min: 0.5, patience: 2000 };
+        assert_eq!(encode(&off, &r), None, "patience above the grid");
     }
 }

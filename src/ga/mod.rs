@@ -1,6 +1,7 @@
 //! The genetic algorithm of thesis Appendix C (SPEC §5).
 
 pub mod chromosome;
+pub mod fitness;
 pub mod operators;
 pub mod prune;
 pub mod search;

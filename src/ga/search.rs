@@ -11,7 +11,7 @@
 //! A search is replayed from generation 0 on every start: chromosomes whose unit files exist are
 //! read, not retrained, so resuming is just running again.
 
-use super::chromosome::{Chromosome, Decoded, decode};
+use super::chromosome::{Chromosome, Decoded, GeneRanges, decode};
 use super::operators::{Birth, initial_population, next_generation, rank};
 use super::prune;
 pub use super::units::{Evaluator, UnitResult, parse_unit_id, unit_id};
@@ -104,7 +104,7 @@ pub struct IndividualRecord {
     /// Pruned (`search.prune`): its datasets stopped once their mean fell below the cutoff.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub pruned: bool,
-    /// How it came about: `initial`, `elite` or `child`.
+    /// How it came about: `initial` (random), `seeded` (`--seed-config`), `elite` or `child`.
     pub origin: String,
     /// A child's parents (their positions in the previous generation), its genes after the
     /// interval crossover and before mutation, and whether it was mutated (thesis Appendix C).
@@ -251,6 +251,9 @@ pub struct SearchOverrides {
     pub seed: Option<u64>,
     /// `search.stop.stall_generations`.
     pub stall_generations: Option<usize>,
+    /// Tuned configs (`thesis` or a best.json) whose settings become `search.seeded`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub seed_config: Vec<String>,
 }
 
 /// Resolves a spec (name or file), applies presets and overrides, validates it and creates the run
@@ -288,13 +291,21 @@ pub fn prepare(
     set("episodes", &["search", "episodes"], o.episodes.map(|v| json!(v)));
     set("seed", &["seed"], o.seed.map(|v| json!(v)));
     set("stall_generations", &["search", "stop", "stall_generations"], o.stall_generations.map(|v| json!(v)));
-    let spec = Spec::from_value(value, &origin).map_err(|e| match e {
+    let after = |e| match e {
         Error::File { path, message } => {
             Error::File { path, message: format!("{message} (after presets and overrides)") }
         }
         other => other,
-    })?;
+    };
+    let mut spec = Spec::from_value(value.clone(), &origin).map_err(after)?;
     let env = spec.env.env().name().to_string();
+    if !o.seed_config.is_empty() {
+        // Encoded on the gene grid of the spec as resolved, then validated with it.
+        let seeded = seed_chromosomes(&o.seed_config, &env, &spec.search.genes)?;
+        value["search"]["seeded"] = serde_json::json!(seeded);
+        overrides.insert("seed_config".into(), serde_json::json!(o.seed_config));
+        spec = Spec::from_value(value, &origin).map_err(after)?;
+    }
     let dir = match out {
         Some(d) => {
             if d.join("spec.json").exists() {
@@ -321,6 +332,28 @@ pub fn prepare(
     };
     create(&dir, &spec, &info)?;
     Ok(dir)
+}
+
+/// The chromosomes of tuned configs (`thesis` or files) for `search.seeded`: each must be for
+/// `env` and its setting must lie on the gene grid.
+fn seed_chromosomes(names: &[String], env: &str, genes: &GeneRanges) -> Result<Vec<Chromosome>> {
+    names
+        .iter()
+        .map(|name| {
+            let (t, from) = TunedConfig::resolve(name, env)?;
+            let refuse = |message: String| Error::File { path: from.clone(), message };
+            if t.env != env {
+                return Err(refuse(format!("is a tuned config for {}, not {env} (--seed-config)", t.env)));
+            }
+            let setting = Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience };
+            super::chromosome::encode(&setting, genes).ok_or_else(|| {
+                refuse(format!(
+                    "its setting ({}) is not on this search's gene grid (search.genes), so it cannot join generation 0",
+                    describe(&setting)
+                ))
+            })
+        })
+        .collect()
 }
 
 /// Changes the stop rules of an existing search before resuming it (they do not alter what was
@@ -726,6 +759,11 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
     let seed = ga_seed(&spec);
     let mut population = initial_population(seed, &s.genes, s.ga.population);
     let mut origins = vec!["initial"; population.len()];
+    // Given configs take the first places; the other individuals keep their own random streams.
+    for (i, c) in s.seeded.iter().enumerate() {
+        population[i] = *c;
+        origins[i] = "seeded";
+    }
     let mut births: Vec<Option<Birth>> = vec![None; population.len()];
     let mut records: Vec<GenerationRecord> = Vec::new();
     let mut best: Option<(IndividualRecord, usize)> = None;

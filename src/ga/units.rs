@@ -9,8 +9,10 @@ use super::chromosome::Decoded;
 use crate::dataset::{self, Dataset, dataset_seed};
 use crate::error::{Error, Result};
 use crate::fqi::{Divergence, Fqi, FqiSettings, IterationRecord};
+use crate::learn::LearnerConfig;
 use crate::learn::actions::Encoded;
 use crate::learn::mlp::{Activation, MlpParams};
+use crate::model::{Model, ModelInfo, QFunction};
 use crate::rng;
 use crate::spec::Spec;
 use crate::store::{read_json, write_json};
@@ -202,15 +204,41 @@ impl Evaluator {
 
     /// Runs FQI for setting `s` on search dataset `d`: a pure function of (spec, s, d).
     pub fn evaluate(&self, s: &Decoded, d: usize) -> Result<UnitResult> {
+        self.evaluate_keeping(s, d, false).map(|(u, _)| u)
+    }
+
+    /// [`Evaluator::evaluate`], also returning the unit's last Q-function when `keep` is set and
+    /// the run did not diverge (what `rollout --tuned` looks at).
+    pub fn evaluate_keeping(&self, s: &Decoded, d: usize, keep: bool) -> Result<(UnitResult, Option<Model>)> {
         let t = Instant::now();
         let x = self.dataset(d)?;
         let (data, enc) = (&x.0, &x.1);
         let params = self.network(s);
         let (fit_seed, eval_seed) = self.seeds(s, d);
         let fqi = Fqi::new(self.spec.env.env(), data, enc, &params, self.fqi_settings(), fit_seed, eval_seed);
-        let rec = fqi.run(|_| {})?;
+        let (rec, members) = fqi.run_keeping(|_| {})?;
+        let model = (keep && rec.diverged.is_none()).then(|| {
+            let (tool_version, commit) = crate::model::build_stamp();
+            let search = &self.spec.search;
+            let info = ModelInfo {
+                tool_version,
+                commit,
+                source: format!("{} unit {}", self.role.name(), unit_id(s, d)),
+                spec_hash: self.spec.hash(),
+                env: self.spec.env.clone(),
+                algorithm: search.algorithm,
+                learner: LearnerConfig::Mlp(params.clone()),
+                encoding: search.actions,
+                actions: self.spec.env.env().actions().to_vec(),
+                iterations: search.iterations,
+                dataset: d,
+                eval_seed,
+                score: rec.final_score(),
+            };
+            Model { info, q: QFunction::Nets(members) }
+        });
         let last = rec.iterations.last();
-        Ok(UnitResult {
+        let unit = UnitResult {
             setting: *s,
             dataset: d,
             score: rec.final_score(),
@@ -219,7 +247,8 @@ impl Evaluator {
             epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
             seconds: t.elapsed().as_secs_f64(),
             iterations: rec.iterations,
-        })
+        };
+        Ok((unit, model))
     }
 
     /// Where a unit's result is stored.

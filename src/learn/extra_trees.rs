@@ -200,6 +200,86 @@ impl ExtraTrees {
     }
 }
 
+/// A forest's storage as model files keep it (see [`crate::model`]): per tree, its nodes as
+/// parallel arrays. Loading it back gives a forest whose predictions are bit-identical.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ForestParts {
+    /// Input features.
+    pub n_inputs: u32,
+    /// The trees, in order (the prediction sums them in this order).
+    pub trees: Vec<TreeParts>,
+}
+
+/// One tree of [`ForestParts`]: node `i` is `(val[i], feat[i], left[i])`, root at 0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TreeParts {
+    /// Edges from the root to the deepest leaf.
+    pub depth: u32,
+    /// Threshold (internal node) or prediction (leaf).
+    pub val: Vec<f64>,
+    /// Feature tested, or the leaf mark `1 << 31`.
+    pub feat: Vec<u32>,
+    /// Left child (the right one follows it), or the leaf itself.
+    pub left: Vec<u32>,
+    /// Training rows that reached each node.
+    pub counts: Vec<u32>,
+}
+
+impl ExtraTrees {
+    /// The forest's storage.
+    pub fn to_parts(&self) -> ForestParts {
+        let trees = self
+            .trees
+            .iter()
+            .map(|t| TreeParts {
+                depth: t.depth as u32,
+                val: t.nodes.iter().map(|n| n.val).collect(),
+                feat: t.nodes.iter().map(|n| n.feat).collect(),
+                left: t.nodes.iter().map(|n| n.left).collect(),
+                counts: t.counts.clone(),
+            })
+            .collect();
+        ForestParts { n_inputs: self.n_inputs as u32, trees }
+    }
+
+    /// Rebuilds a forest from its storage, checking that every walk stays inside its tree and ends
+    /// at a leaf within the recorded depth (a damaged file is refused, not walked).
+    pub fn from_parts(p: ForestParts) -> Result<ExtraTrees> {
+        let bad = |t: usize, what: String| Error::Data(format!("tree {t}: {what}"));
+        if p.n_inputs == 0 || p.trees.is_empty() {
+            return Err(Error::Data("a forest needs inputs and at least one tree".into()));
+        }
+        let mut trees = Vec::with_capacity(p.trees.len());
+        for (t, tp) in p.trees.into_iter().enumerate() {
+            let n = tp.val.len();
+            if n == 0 || tp.feat.len() != n || tp.left.len() != n || tp.counts.len() != n || n > u32::MAX as usize / 2 {
+                return Err(bad(t, "node arrays of different or zero lengths".into()));
+            }
+            // Children come after their parent, so depths follow in one pass over the nodes.
+            let mut depth = vec![0u32; n];
+            for i in 0..n {
+                let (f, l) = (tp.feat[i], tp.left[i] as usize);
+                if f == LEAF {
+                    if l != i {
+                        return Err(bad(t, format!("leaf {i} does not point at itself")));
+                    }
+                } else if f >= p.n_inputs || l <= i || l + 1 >= n {
+                    return Err(bad(t, format!("node {i} tests feature {f} or has children at {l} out of range")));
+                } else {
+                    depth[l] = depth[i] + 1;
+                    depth[l + 1] = depth[i] + 1;
+                }
+            }
+            if depth.iter().max() != Some(&tp.depth) {
+                return Err(bad(t, format!("recorded depth {} is not the tree's", tp.depth)));
+            }
+            let nodes = (0..n).map(|i| Node { val: tp.val[i], feat: tp.feat[i], left: tp.left[i] }).collect();
+            trees.push(Tree { nodes, counts: tp.counts, depth: tp.depth as usize });
+        }
+        Ok(ExtraTrees { n_inputs: p.n_inputs as usize, trees })
+    }
+}
+
 /// Walks interleaved in prediction: trees for one row, rows for one tree.
 const WALKS: usize = 8;
 /// Rows per block in [`ExtraTrees::predict_into`]: a tree is walked for the whole block before the

@@ -3,6 +3,7 @@
 pub mod claims;
 pub mod comparison;
 pub mod plot;
+pub mod policy;
 pub mod rollout;
 pub mod search;
 pub mod stats;

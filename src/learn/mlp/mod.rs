@@ -434,6 +434,64 @@ impl Mlp {
     }
 }
 
+/// A network's storage as model files keep it (see [`crate::model`]): the shape, the flat
+/// parameters and the standardizations. Loading it back gives bit-identical predictions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NetParts {
+    /// Hidden layer widths.
+    pub hidden: Vec<u32>,
+    /// Number of inputs.
+    pub n_inputs: u32,
+    /// Hidden activation.
+    pub activation: Activation,
+    /// The flat parameter vector (layout in [`Shape`]).
+    pub params: Vec<f32>,
+    /// Mean and standard deviation of each input.
+    pub x_scale: Vec<(f64, f64)>,
+    /// Mean and standard deviation of the target.
+    pub y_scale: (f64, f64),
+}
+
+impl Mlp {
+    /// The network's storage.
+    pub fn to_parts(&self) -> NetParts {
+        let w = self.shape.widths();
+        NetParts {
+            hidden: w[1..w.len() - 1].iter().map(|&h| h as u32).collect(),
+            n_inputs: w[0] as u32,
+            activation: self.shape.activation(),
+            params: self.params.clone(),
+            x_scale: self.x_scale.iter().map(|s| (s.mean, s.std)).collect(),
+            y_scale: (self.y_scale.mean, self.y_scale.std),
+        }
+    }
+
+    /// Rebuilds a network from its storage; sizes must agree and scales be finite and positive.
+    pub fn from_parts(p: NetParts) -> Result<Mlp> {
+        let ok_scale = |(m, s): (f64, f64)| m.is_finite() && s.is_finite() && s > 0.0;
+        let widths_ok =
+            p.n_inputs >= 1 && p.hidden.iter().all(|&h| (1..=1 << 16).contains(&h)) && p.n_inputs <= 1 << 16;
+        if !widths_ok || p.x_scale.len() != p.n_inputs as usize {
+            return Err(Error::Data(format!(
+                "network of {} inputs and hidden {:?} is malformed",
+                p.n_inputs, p.hidden
+            )));
+        }
+        let hidden: Vec<usize> = p.hidden.iter().map(|&h| h as usize).collect();
+        let shape = Shape::new(p.n_inputs as usize, &hidden, p.activation);
+        if p.params.len() != shape.n_params() {
+            return Err(Error::Data(format!("{} parameters where the shape has {}", p.params.len(), shape.n_params())));
+        }
+        if !p.x_scale.iter().all(|&s| ok_scale(s)) || !ok_scale(p.y_scale) {
+            return Err(Error::Data("a standardization is not finite and positive".into()));
+        }
+        let x_scale = p.x_scale.iter().map(|&(m, s)| Standardizer::new(m, s)).collect();
+        let y_scale = Standardizer::new(p.y_scale.0, p.y_scale.1);
+        let row = RowNet::new(&shape, &p.params);
+        Ok(Mlp { shape, params: p.params, x_scale, y_scale, row })
+    }
+}
+
 impl Regressor for Mlp {
     fn n_inputs(&self) -> usize {
         self.shape.n_inputs()
