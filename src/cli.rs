@@ -832,6 +832,9 @@ fn cmd_rollout(a: RolloutArgs) -> Result<ExitCode> {
             );
             let (_, m) = crate::ga::fitness::train(&spec, &t, &from, a.dataset)?;
             if let Some(p) = &a.save_model {
+                if let Some(parent) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                    store::create_dir(parent)?;
+                }
                 crate::model::save(p, &m)?;
                 eprintln!("saved the Q-function to {}", p.display());
             }

@@ -146,12 +146,21 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
     let r = tmp("tuned-rollout");
     let stdout = ok(&bin()
         .args(["rollout", "--tuned", best.to_str().unwrap(), "--dataset", "1", "--draw", "0"])
-        .args(["--out", r.to_str().unwrap()])
+        .args(["--out", r.to_str().unwrap(), "--save-model", r.join("new/q.model").to_str().unwrap()])
         .output()
         .unwrap());
     assert!(stdout.contains("(identical)"), "{stdout}");
     let summary = json(&r.join("rollout.json"));
     assert_eq!(bits(&summary["episodes"][0]["score"]), bits(&b["scores"][1]));
+    // The saved Q-function is that unit's: evaluated on its own episode, it scores the same.
+    let e: Value = serde_json::from_str(&ok(&bin()
+        .args(["evaluate", r.join("new/q.model").to_str().unwrap(), "--episodes", "1", "--start", "eval", "--json"])
+        .output()
+        .unwrap()))
+    .unwrap();
+    assert_eq!(bits(&e["result"]["score"]["mean"]), bits(&b["scores"][1]));
+    let source = e["info"]["source"].as_str().unwrap();
+    assert!(source.starts_with("search unit ") && source.ends_with(".d1"), "{source}");
 
     // A config off the gene grid cannot be seeded: refused before any directory is made.
     let mut off = b.clone();
@@ -172,4 +181,32 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
     for d in [dir, r] {
         std::fs::remove_dir_all(d).unwrap();
     }
+}
+
+#[test]
+fn committed_rollouts_replay_bit_for_bit_from_their_models() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/rollouts");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&root).unwrap() {
+        let dir = entry.unwrap().path();
+        let model = dir.join("q.model");
+        if !model.is_file() {
+            continue;
+        }
+        let out = tmp(&format!("replay-{}", dir.file_name().unwrap().to_string_lossy()));
+        ok(&bin()
+            .args(["rollout", model.to_str().unwrap(), "--draw", "0", "--out", out.to_str().unwrap()])
+            .output()
+            .unwrap());
+        let (a, b) = (
+            std::fs::read_to_string(dir.join("trajectory.csv")).unwrap(),
+            std::fs::read_to_string(out.join("trajectory.csv")).unwrap(),
+        );
+        assert!(a == b, "{}: the committed trajectory no longer replays", dir.display());
+        let (x, y) = (json(&dir.join("rollout.json")), json(&out.join("rollout.json")));
+        assert_eq!(x["result"], y["result"], "{}", dir.display());
+        std::fs::remove_dir_all(out).unwrap();
+        checked += 1;
+    }
+    assert!(checked >= 3, "only {checked} committed rollouts with a model");
 }
