@@ -475,7 +475,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         _ => cli.jobs,
     };
     if let Some(n) = jobs {
-        anyhow::ensure!(n >= 1, "invalid --jobs = 0: must be ≥ 1");
+        let max = crate::limits::JOBS;
+        anyhow::ensure!((1..=max).contains(&n), "invalid --jobs = {n}: must be in 1..={max}");
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().context("setting up the thread pool")?;
     }
     match cli.command {
@@ -849,8 +850,14 @@ fn cmd_rollout(a: RolloutArgs) -> Result<ExitCode> {
         draw: a.draw,
         frames: a.frames,
     };
-    anyhow::ensure!(req.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
-    anyhow::ensure!(req.steps >= 1, "invalid --steps = 0: must be ≥ 1");
+    let (me, ms) = (crate::limits::EVAL_EPISODES, crate::limits::EVAL_STEPS);
+    anyhow::ensure!((1..=me).contains(&req.episodes), "invalid --episodes = {}: must be in 1..={me}", req.episodes);
+    // Every step of every episode is kept in memory for the CSV.
+    anyhow::ensure!(
+        req.steps >= 1 && req.steps.saturating_mul(req.episodes) <= ms,
+        "invalid --steps = {}: must be ≥ 1, with steps × episodes ≤ {ms}",
+        req.steps
+    );
     let env = model.info.env.env().name();
     let dir = match &a.out {
         Some(d) => d.clone(),
@@ -887,10 +894,11 @@ fn cmd_rollout(a: RolloutArgs) -> Result<ExitCode> {
 }
 
 fn cmd_evaluate(a: EvaluateArgs) -> Result<ExitCode> {
-    anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    let (me, ms) = (crate::limits::EVAL_EPISODES, crate::limits::EVAL_STEPS);
+    anyhow::ensure!((1..=me).contains(&a.episodes), "invalid --episodes = {}: must be in 1..={me}", a.episodes);
     let m = crate::model::load(&a.model)?;
     let steps = a.steps.unwrap_or(m.info.env.env().eval().steps);
-    anyhow::ensure!(steps >= 1, "invalid --steps = 0: must be ≥ 1");
+    anyhow::ensure!((1..=ms).contains(&steps), "invalid --steps = {steps}: must be in 1..={ms}");
     let eps = crate::rollout::run(&m.info.env, &|o, q| m.q(o, q), m.info.eval_seed, a.episodes, a.start, steps, false);
     let eps: Vec<crate::eval::Episode> = eps.into_iter().map(|(e, _)| e).collect();
     let r = crate::rollout::robustness(a.start, &eps).expect("at least one episode");
@@ -1012,6 +1020,12 @@ fn parse_list(text: &str) -> Result<Vec<usize>> {
     let bad = || anyhow::anyhow!("invalid --complexities = {text}: must be like 1..15 or 1,2,5 (each ≥ 1)");
     let v: Vec<usize> = if let Some((a, b)) = text.split_once("..") {
         let (a, b): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+        // Checked before the range is collected: 1..10^12 must be refused, not allocated.
+        let points = crate::limits::SWEEP_POINTS;
+        anyhow::ensure!(
+            a <= b && b - a < points,
+            "invalid --complexities = {text}: a range must be lo..hi with at most {points} values"
+        );
         (a..=b).collect()
     } else {
         text.split(',').map(|x| x.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?

@@ -48,7 +48,7 @@ pub enum Error {
 impl Error {
     /// Shorthand for [`Error::Invalid`].
     pub fn invalid(field: impl Into<String>, value: impl ToString, allowed: impl Into<String>) -> Self {
-        Error::Invalid { field: field.into(), value: value.to_string(), allowed: allowed.into() }
+        Error::Invalid { field: field.into(), value: short_number(value.to_string()), allowed: allowed.into() }
     }
 
     /// Shorthand for [`Error::Io`].
@@ -76,11 +76,78 @@ pub fn from_json<T: serde::de::DeserializeOwned>(
     context: &str,
 ) -> Result<T> {
     serde_path_to_error::deserialize(value).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner().to_string();
+        let (path, inner) = joined(e);
         let message = if path == "." { format!("{context}{inner}") } else { format!("{context}field {path}: {inner}") };
         Error::File { path: origin.to_path_buf(), message }
     })
+}
+
+/// Refuses a JSON document that is not an object (serde would read an array as a struct's fields
+/// in order and report a confusing `field [0]`).
+pub fn expect_object(value: &serde_json::Value, origin: &std::path::Path, what: &str) -> Result<()> {
+    let kind = match value {
+        serde_json::Value::Object(_) => return Ok(()),
+        serde_json::Value::Array(_) => "an array",
+        serde_json::Value::String(_) => "a string",
+        serde_json::Value::Number(_) => "a number",
+        serde_json::Value::Bool(_) => "a boolean",
+        serde_json::Value::Null => "null",
+    };
+    Err(Error::File { path: origin.to_path_buf(), message: format!("{what} must be a JSON object, not {kind}") })
+}
+
+/// Separates an inner field path carried in a custom error message (see [`tagged`]).
+const INNER: char = '\u{1}';
+
+/// The full field path of a path-tracking error and its message, joining the path that a
+/// [`tagged`] enum's fields report from inside.
+fn joined(e: serde_path_to_error::Error<serde_json::Error>) -> (String, String) {
+    let outer = e.path().to_string();
+    let inner = e.into_inner().to_string();
+    // serde_json appends " at line … column …" to custom messages of its own parser only; from a
+    // Value there is none, but a marker may sit after a prefix such as "invalid value: ".
+    match inner.split_once(INNER).and_then(|(_, rest)| rest.split_once(INNER)) {
+        Some((sub, message)) => {
+            let path = if outer == "." { sub.to_string() } else { format!("{outer}.{sub}") };
+            (path, message.to_string())
+        }
+        None => (outer, inner),
+    }
+}
+
+/// Deserialises the fields of an internally tagged enum's variant (`{"name": "cartpole", ...}`)
+/// from what remains of its object, keeping the path of a bad field (`env.g`, not `env`): serde's
+/// derived internally tagged enums buffer their content and lose it.
+pub(crate) fn tagged<T: serde::de::DeserializeOwned, E: serde::de::Error>(
+    rest: serde_json::Map<String, serde_json::Value>,
+) -> std::result::Result<T, E> {
+    serde_path_to_error::deserialize(serde_json::Value::Object(rest)).map_err(|e| {
+        let (path, inner) = joined(e);
+        if path == "." { E::custom(inner) } else { E::custom(format!("{INNER}{path}{INNER}{inner}")) }
+    })
+}
+
+/// Splits the tag off an internally tagged enum's object: `(tag value, the other fields)`.
+pub(crate) fn take_tag<'de, D: serde::Deserializer<'de>>(
+    d: D,
+    tag: &'static str,
+) -> std::result::Result<(String, serde_json::Map<String, serde_json::Value>), D::Error> {
+    use serde::Deserialize;
+    use serde::de::Error as _;
+    let mut map = serde_json::Map::<String, serde_json::Value>::deserialize(d)?;
+    match map.remove(tag) {
+        Some(serde_json::Value::String(s)) => Ok((s, map)),
+        Some(other) => Err(D::Error::custom(format!("{INNER}{tag}{INNER}must be a string, not {other}"))),
+        None => Err(D::Error::missing_field(tag)),
+    }
+}
+
+/// A number as a person reads it: `1e308`, not the 309 digits `f64`'s `Display` writes.
+fn short_number(s: String) -> String {
+    match s.parse::<f64>() {
+        Ok(x) if s.len() > 24 && x.is_finite() => format!("{x:e}"),
+        _ => s,
+    }
 }
 
 /// The library's result type.

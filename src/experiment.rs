@@ -63,10 +63,12 @@ impl RunConfig {
     pub fn validate(&self) -> Result<()> {
         self.env.validate()?;
         self.learner.check()?;
-        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+        use crate::limits::{self, DATASETS, ITERATIONS};
+        self.env.check_encoding("actions", self.actions)?;
+        limits::within("iterations", self.iterations, 1, ITERATIONS)?;
         ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
-        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
-        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")
+        limits::episodes("episodes", self.episodes, self.env.env().horizon())?;
+        limits::within("datasets", self.datasets, 1, DATASETS)
     }
 
     /// A short hash of the configuration's canonical JSON (recorded in model files).

@@ -16,6 +16,7 @@ pub mod experiment;
 pub mod fqi;
 pub mod ga;
 pub mod learn;
+pub mod limits;
 pub mod model;
 pub mod progress;
 pub mod report;

@@ -61,10 +61,17 @@ fn one() -> usize {
 }
 
 impl Preset {
-    fn validate(&self) -> Result<()> {
-        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
-        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
-        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
+    fn validate(&self, horizon: usize) -> Result<()> {
+        use crate::limits::{self, DATASETS, ITERATIONS, SWEEP_POINTS, WIDTH};
+        limits::within("iterations", self.iterations, 1, ITERATIONS)?;
+        limits::within("datasets", self.datasets, 1, DATASETS)?;
+        limits::episodes("episodes", self.episodes, horizon)?;
+        ensure(
+            self.complexities.len() <= SWEEP_POINTS && self.complexities.iter().all(|&c| c <= WIDTH),
+            "complexities",
+            format!("{} values", self.complexities.len()),
+            &format!("must be at most {SWEEP_POINTS} values, each ≤ {WIDTH}"),
+        )?;
         ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
         ensure(
             self.complexities.iter().all(|&c| c >= 1),
@@ -79,13 +86,16 @@ impl Preset {
                 format!("fqi {} bfqi {}", s.fqi, s.bfqi),
                 "complexities must be ≥ 1",
             )?;
-            ensure(s.datasets >= 1, "samples.datasets", s.datasets, "must be ≥ 1")?;
+            limits::within("samples.datasets", s.datasets, 1, DATASETS)?;
             ensure(
-                !s.sizes.is_empty() && s.sizes.iter().all(|&n| n >= 1),
+                (1..=SWEEP_POINTS).contains(&s.sizes.len()),
                 "samples.sizes",
-                format!("{:?}", s.sizes),
-                "must be non-empty, each ≥ 1",
+                format!("{} sizes", s.sizes.len()),
+                &format!("must list 1 to {SWEEP_POINTS} sizes"),
             )?;
+            for (i, &n) in s.sizes.iter().enumerate() {
+                limits::episodes(&format!("samples.sizes[{i}]"), n, horizon)?;
+            }
         }
         self.learner.check()
     }
@@ -150,14 +160,16 @@ pub struct SearchSpec {
 }
 
 impl SearchSpec {
-    fn validate(&self) -> Result<()> {
-        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
-        ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
-        ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
+    fn validate(&self, horizon: usize) -> Result<()> {
+        use crate::limits::{self, DATASETS, GENERATIONS, ITERATIONS, POPULATION};
+        limits::within("datasets", self.datasets, 1, DATASETS)?;
+        limits::episodes("episodes", self.episodes, horizon)?;
+        limits::within("iterations", self.iterations, 1, ITERATIONS)?;
+        limits::within("ga.population", self.ga.population, 2, POPULATION)?;
+        limits::within("stop.generations", self.stop.generations, 1, GENERATIONS)?;
         self.network.check().map_err(|e| e.within("network"))?;
         self.genes.validate().map_err(|e| e.within("genes"))?;
         let ga = &self.ga;
-        ensure(ga.population >= 2, "ga.population", ga.population, "must be ≥ 2")?;
         for (f, v) in [("ga.elitism", ga.elitism), ("ga.parent_pool", ga.parent_pool)] {
             ensure((0.0..=1.0).contains(&v), f, v, "must be in [0, 1]")?;
         }
@@ -165,7 +177,6 @@ impl SearchSpec {
         for (f, v) in [("ga.mutation", ga.mutation), ("ga.gene_resampling", ga.gene_resampling)] {
             ensure((0.0..=1.0).contains(&v), f, v, "must be in [0, 1]")?;
         }
-        ensure(self.stop.generations >= 1, "stop.generations", self.stop.generations, "must be ≥ 1")?;
         if let Some(h) = self.stop.max_hours {
             ensure(h.is_finite() && h > 0.0, "stop.max_hours", h, "must be > 0")?;
         }
@@ -271,9 +282,13 @@ impl Spec {
     /// Validates every field; the error names the field path.
     pub fn validate(&self) -> Result<()> {
         self.env.validate()?;
-        self.experiments.et.validate().map_err(|e| e.within("experiments.et"))?;
-        self.experiments.mlp.validate().map_err(|e| e.within("experiments.mlp"))?;
-        self.search.validate().map_err(|e| e.within("search"))
+        let horizon = self.env.env().horizon();
+        self.env.check_encoding("experiments.et.actions", self.experiments.et.actions)?;
+        self.env.check_encoding("experiments.mlp.actions", self.experiments.mlp.actions)?;
+        self.env.check_encoding("search.actions", self.search.actions)?;
+        self.experiments.et.validate(horizon).map_err(|e| e.within("experiments.et"))?;
+        self.experiments.mlp.validate(horizon).map_err(|e| e.within("experiments.mlp"))?;
+        self.search.validate(horizon).map_err(|e| e.within("search"))
     }
 
     /// Parses and validates spec text; `origin` names it in errors.
@@ -318,6 +333,7 @@ impl Spec {
 
     /// Deserialises and validates a JSON value; `origin` names it in errors.
     pub fn from_value(value: serde_json::Value, origin: &Path) -> Result<Spec> {
+        crate::error::expect_object(&value, origin, "a spec")?;
         let spec: Spec = crate::error::from_json(value, origin, "")?;
         spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
         Ok(spec)

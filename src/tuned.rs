@@ -88,7 +88,22 @@ impl TunedConfig {
         )?;
         ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
         ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
-        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")
+        ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
+        // The embedded spec is what `reproduce` and `rollout` run: checked like a spec file, and the
+        // chromosome must lie on its gene grid (else decoding would index past the activations).
+        if let Some(spec) = &self.spec {
+            spec.validate().map_err(|e| e.within("spec"))?;
+            if let Some(c) = &self.chromosome {
+                let b = spec.search.genes.bounds();
+                ensure(
+                    spec.search.genes.contains(c),
+                    "chromosome",
+                    format!("{c:?}"),
+                    &format!("must lie in spec.search.genes {b:?}"),
+                )?;
+            }
+        }
+        Ok(())
     }
 
     /// Reads and validates a tuned config; errors name the file and the field.
@@ -100,6 +115,7 @@ impl TunedConfig {
     fn parse(text: &str, origin: &Path) -> Result<TunedConfig> {
         let file_err = |message: String| Error::File { path: origin.to_path_buf(), message };
         let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_err(e.to_string()))?;
+        crate::error::expect_object(&value, origin, "a tuned config")?;
         let t: TunedConfig = crate::error::from_json(value, origin, "")?;
         t.validate().map_err(|e| file_err(e.to_string()))?;
         Ok(t)

@@ -57,8 +57,8 @@ pub struct EvalConfig {
 
 impl EvalConfig {
     fn validate(&self, state_dim: usize) -> Result<()> {
-        ensure(self.episodes >= 1, "eval.episodes", self.episodes, "must be ≥ 1")?;
-        ensure(self.steps >= 1, "eval.steps", self.steps, "must be ≥ 1")?;
+        crate::limits::within("eval.episodes", self.episodes, 1, crate::limits::EVAL_EPISODES)?;
+        crate::limits::within("eval.steps", self.steps, 1, crate::limits::EVAL_STEPS)?;
         validate_box(&self.start, state_dim, "eval.start")
     }
 }
@@ -131,7 +131,7 @@ pub trait Env: Send + Sync {
 pub const NAMES: [&str; 3] = ["pendulum", "cartpole", "bicycle"];
 
 /// An environment with its settings; the serialised form is `{"name": "...", ...settings}`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "name", rename_all = "lowercase")]
 pub enum EnvConfig {
     /// Swing-up pendulum (gym Pendulum-v0).
@@ -140,6 +140,18 @@ pub enum EnvConfig {
     Cartpole(CartPoleConfig),
     /// Bicycle balancing (Ernst et al. 2005).
     Bicycle(BicycleConfig),
+}
+
+impl<'de> Deserialize<'de> for EnvConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (name, rest) = crate::error::take_tag(d, "name")?;
+        match name.as_str() {
+            "pendulum" => crate::error::tagged(rest).map(EnvConfig::Pendulum),
+            "cartpole" => crate::error::tagged(rest).map(EnvConfig::Cartpole),
+            "bicycle" => crate::error::tagged(rest).map(EnvConfig::Bicycle),
+            other => Err(serde::de::Error::unknown_variant(other, &NAMES)),
+        }
+    }
 }
 
 impl EnvConfig {
@@ -169,7 +181,61 @@ impl EnvConfig {
             EnvConfig::Cartpole(c) => c.validate(),
             EnvConfig::Bicycle(c) => c.validate(),
         };
-        r.and_then(|_| self.env().eval().validate(self.env().state_dim())).map_err(|e| e.within("env"))
+        r.and_then(|_| self.env().eval().validate(self.env().state_dim())).map_err(|e| e.within("env"))?;
+        self.check_dynamics()
+    }
+
+    /// Every constant can be finite and positive and the dynamics still overflow (`tau` 1e308):
+    /// a few random-policy episodes of up to 100 steps, from a fixed stream, must keep states and
+    /// rewards finite. Caught here, it is a one-line refusal instead of a "non-finite target"
+    /// hours into a search.
+    fn check_dynamics(&self) -> Result<()> {
+        let env = self.env();
+        let sd = env.state_dim();
+        for e in 0..3u64 {
+            let mut rng = crate::rng::stream(0, "env/check", &[e]);
+            let (mut s, mut next) = ([0.0; MAX_STATE], [0.0; MAX_STATE]);
+            env.dataset_start(&mut rng, &mut s[..sd]);
+            for _ in 0..env.horizon().min(100) {
+                let a = env.dataset_action(&mut rng);
+                let o = env.step(&s[..sd], a, &mut rng, &mut next[..sd]);
+                if !o.reward.is_finite() || next[..sd].iter().any(|v| !v.is_finite()) {
+                    return Err(Error::invalid(
+                        "env",
+                        format!("{} settings", env.name()),
+                        "the dynamics overflow to non-finite states or rewards within 100 random steps; \
+                         bring the constants back to a physical range",
+                    ));
+                }
+                if o.failed {
+                    break;
+                }
+                s = next;
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether every action a dataset can take is one of the discrete actions (the `per_action`
+    /// encoding needs it; the pendulum's random policy draws continuous torques).
+    pub fn discrete_dataset_actions(&self) -> bool {
+        let env = self.env();
+        let mut rng = crate::rng::stream(0, "env/check-actions", &[]);
+        (0..64).all(|_| env.actions().contains(&env.dataset_action(&mut rng)))
+    }
+
+    /// Refuses the `per_action` encoding for continuous dataset actions, naming `field`.
+    pub fn check_encoding(&self, field: &str, encoding: crate::learn::actions::ActionEncoding) -> Result<()> {
+        let per_action = encoding == crate::learn::actions::ActionEncoding::PerAction;
+        ensure(
+            !per_action || self.discrete_dataset_actions(),
+            field,
+            "per_action",
+            &format!(
+                "needs discrete dataset actions; {}'s random policy takes continuous ones (use input)",
+                self.env().name()
+            ),
+        )
     }
 }
 

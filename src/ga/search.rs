@@ -265,19 +265,37 @@ pub fn prepare(
     out: Option<&Path>,
     results: &Path,
 ) -> Result<PathBuf> {
+    // Each layer is validated as written, so an error names the file that holds it: the spec
+    // file alone, then after each preset (naming the preset), then after the flags.
     let (mut value, origin) = Spec::resolve_value(spec_name)?;
+    Spec::from_value(value.clone(), &origin)?;
     let mut applied = Vec::new();
     for p in presets {
         let (patch, from) = crate::spec::load_preset(p)?;
+        if !patch.is_object() {
+            return Err(Error::File { path: from, message: "a preset must be a JSON object of spec fields".into() });
+        }
         crate::spec::merge_patch(&mut value, &patch);
+        Spec::from_value(value.clone(), &from).map_err(|e| match e {
+            Error::File { path, message } => {
+                Error::File { path, message: format!("{message} (applied to {})", origin.display()) }
+            }
+            other => other,
+        })?;
         applied.push(from.display().to_string());
     }
     let mut overrides = BTreeMap::new();
     let mut set = |field: &str, path: &[&str], v: Option<serde_json::Value>| {
         if let Some(v) = v {
+            // Objects on the path are created where a field was left to its default; the result is
+            // validated below like everything else.
             let mut slot = &mut value;
             for key in path {
-                slot = &mut slot[*key];
+                if !slot.is_object() {
+                    *slot = serde_json::Value::Object(Default::default());
+                }
+                let serde_json::Value::Object(m) = slot else { unreachable!("made an object above") };
+                slot = m.entry(key.to_string()).or_insert(serde_json::Value::Null);
             }
             *slot = v.clone();
             overrides.insert(field.to_string(), v);

@@ -55,7 +55,7 @@ impl Learner for ExtraTreesParams {
     type Model = ExtraTrees;
 
     fn check(&self) -> Result<()> {
-        ensure(self.n_trees >= 1, "n_trees", self.n_trees, "must be ≥ 1")?;
+        crate::limits::within("n_trees", self.n_trees, 1, crate::limits::TREES)?;
         if let Some(d) = self.max_depth {
             ensure(d >= 1, "max_depth", d, "must be ≥ 1 (or null for unlimited)")?;
         }

@@ -252,13 +252,24 @@ mod tests {
 
 /// A learner with its settings, as spec files and run records name it:
 /// `{"kind": "extra_trees", "n_trees": 50, ...}` or `{"kind": "mlp", "hidden": [10, 10], ...}`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum LearnerConfig {
     /// Extra-Trees (Geurts et al. 2006).
     ExtraTrees(extra_trees::ExtraTreesParams),
     /// The early-stopped MLP.
     Mlp(mlp::MlpParams),
+}
+
+impl<'de> Deserialize<'de> for LearnerConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let (kind, rest) = crate::error::take_tag(d, "kind")?;
+        match kind.as_str() {
+            "extra_trees" => crate::error::tagged(rest).map(LearnerConfig::ExtraTrees),
+            "mlp" => crate::error::tagged(rest).map(LearnerConfig::Mlp),
+            other => Err(serde::de::Error::unknown_variant(other, &["extra_trees", "mlp"])),
+        }
+    }
 }
 
 impl LearnerConfig {

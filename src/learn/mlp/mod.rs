@@ -178,20 +178,22 @@ impl Learner for MlpParams {
     type Model = Mlp;
 
     fn check(&self) -> Result<()> {
+        use crate::limits::{EPOCHS, LAYERS, WIDTH};
         ensure(
-            !self.hidden.is_empty() && self.hidden.iter().all(|&w| w >= 1),
+            (1..=LAYERS).contains(&self.hidden.len()) && self.hidden.iter().all(|&w| (1..=WIDTH).contains(&w)),
             "hidden",
             format!("{:?}", self.hidden),
-            "must list at least one layer, each of width ≥ 1",
+            &format!("must list 1 to {LAYERS} layers, each of width 1..={WIDTH}"),
         )?;
         let lr = self.learning_rate;
         ensure(lr.is_finite() && lr > 0.0, "learning_rate", lr, "must be finite and > 0")?;
         ensure(self.rho.is_finite() && (0.0..1.0).contains(&self.rho), "rho", self.rho, "must be in [0, 1)")?;
         ensure(self.epsilon.is_finite() && self.epsilon > 0.0, "epsilon", self.epsilon, "must be finite and > 0")?;
         ensure(self.batch_size >= 1, "batch_size", self.batch_size, "must be ≥ 1")?;
-        ensure(self.max_epochs >= 1, "max_epochs", self.max_epochs, "must be ≥ 1")?;
+        crate::limits::within("max_epochs", self.max_epochs, 1, EPOCHS)?;
         let f = self.validation_fraction;
-        ensure(f.is_finite() && f > 0.0 && f < 1.0, "validation_fraction", f, "must be in (0, 1)")?;
+        // ≤ 0.5 keeps a training and a validation row in any fit of two rows or more.
+        ensure(f.is_finite() && f > 0.0 && f <= 0.5, "validation_fraction", f, "must be in (0, 0.5]")?;
         ensure(
             self.delta_min.is_finite() && self.delta_min >= 0.0,
             "delta_min",

@@ -309,6 +309,7 @@ fn invalid_settings_name_their_field() {
     bad(MlpParams { max_epochs: 0, ..d() }, "max_epochs");
     bad(MlpParams { validation_fraction: 0.0, ..d() }, "validation_fraction");
     bad(MlpParams { validation_fraction: 1.0, ..d() }, "validation_fraction");
+    bad(MlpParams { validation_fraction: 0.999, ..d() }, "validation_fraction");
     assert!(d().check().is_ok());
     let e = MlpParams { delta_min: -1.0, ..d() }.check().unwrap_err().within("mlp").to_string();
     assert_eq!(e, "invalid mlp.delta_min = -1: must be finite and ≥ 0");

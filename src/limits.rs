@@ -1,0 +1,50 @@
+//! The sizes bfqi-ga accepts. Each cap is far above anything the thesis or a researcher's run needs
+//! and below what would exhaust a machine's memory or run for centuries: a value past it is refused
+//! at validation, naming the field and the allowed range, instead of aborting on an allocation
+//! failure hours later (or on every `--resume`).
+
+use crate::error::{Result, ensure};
+
+/// Datasets of a run, a search or a comparison point.
+pub const DATASETS: usize = 10_000;
+/// Individuals per generation.
+pub const POPULATION: usize = 10_000;
+/// Generations of a search.
+pub const GENERATIONS: usize = 1_000_000;
+/// FQI iterations K.
+pub const ITERATIONS: usize = 100_000;
+/// Transitions of one dataset at most (episodes × the environment's horizon): about 2 GB of
+/// transitions, 50 times the thesis's largest (pendulum, 2000 × 200).
+pub const TRANSITIONS: usize = 20_000_000;
+/// Trees of a forest.
+pub const TREES: usize = 10_000;
+/// Units of one hidden layer (also the largest network complexity).
+pub const WIDTH: usize = 4096;
+/// Hidden layers.
+pub const LAYERS: usize = 16;
+/// Training epochs of one fit.
+pub const EPOCHS: usize = 10_000_000;
+/// Points of a complexity or dataset-size sweep.
+pub const SWEEP_POINTS: usize = 1000;
+/// Evaluation episodes, and steps per evaluation episode.
+pub const EVAL_EPISODES: usize = 1_000_000;
+/// See [`EVAL_EPISODES`].
+pub const EVAL_STEPS: usize = 10_000_000;
+/// Worker threads (`--jobs`).
+pub const JOBS: usize = 1024;
+
+/// `lo ≤ v ≤ hi`, or an error naming `field` and the range.
+pub fn within(field: &str, v: usize, lo: usize, hi: usize) -> Result<()> {
+    ensure((lo..=hi).contains(&v), field, v, &format!("must be in {lo}..={hi}"))
+}
+
+/// A dataset of `episodes` episodes of at most `horizon` steps stays under [`TRANSITIONS`].
+pub fn episodes(field: &str, episodes: usize, horizon: usize) -> Result<()> {
+    let max = (TRANSITIONS / horizon.max(1)).max(1);
+    ensure(
+        (1..=max).contains(&episodes),
+        field,
+        episodes,
+        &format!("must be in 1..={max} (episodes × the horizon of {horizon} steps ≤ {TRANSITIONS} transitions)"),
+    )
+}
