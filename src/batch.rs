@@ -90,6 +90,55 @@ pub struct CompareJob {
     pub sizes: Option<Vec<usize>>,
 }
 
+impl SearchJob {
+    /// The job's overrides of its spec.
+    pub fn overrides(&self) -> SearchOverrides {
+        SearchOverrides {
+            generations: self.generations,
+            population: self.population,
+            datasets: self.datasets,
+            iterations: self.iterations,
+            episodes: self.episodes,
+            seed: self.seed,
+            stall_generations: self.stall_generations,
+            seed_config: self.seed_config.clone(),
+        }
+    }
+}
+
+impl CompareJob {
+    /// The job's overrides of its spec.
+    pub fn overrides(&self) -> Overrides {
+        Overrides {
+            datasets: self.datasets,
+            episodes: self.episodes,
+            iterations: self.iterations,
+            complexities: self.complexities.clone(),
+            sizes: self.sizes.clone(),
+        }
+    }
+}
+
+/// Checks that every job of a plan would start: its spec, presets, tuned config and overrides
+/// resolve and validate (a `from:` job is checked with the thesis optimum in place of the search's
+/// winner, which does not exist yet). Errors name the plan and the job.
+pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
+    for (i, job) in plan.jobs.iter().enumerate() {
+        let checked = match job {
+            Job::Search(s) => search::resolve(&s.search, &s.presets, &s.overrides()).map(|_| ()),
+            Job::Compare(c) => {
+                let tuned = if c.tuned.starts_with("from:") { "thesis" } else { c.tuned.as_str() };
+                compare::resolve(&c.compare, tuned, &c.analysis, &c.learner, &c.overrides()).map(|_| ())
+            }
+        };
+        checked.map_err(|e| Error::File {
+            path: plan_path.to_path_buf(),
+            message: format!("job {} ({}): {e}", i + 1, job.name()),
+        })?;
+    }
+    Ok(())
+}
+
 fn thesis() -> String {
     "thesis".into()
 }
@@ -132,7 +181,7 @@ impl Plan {
     /// Parses a plan; errors name the file, the job and the field.
     pub fn parse(text: &str, origin: &Path) -> Result<Plan> {
         let err = |message: String| Error::File { path: origin.to_path_buf(), message };
-        let v: serde_json::Value = serde_json::from_str(text).map_err(|e| err(e.to_string()))?;
+        let v = store::parse_json(text, origin)?;
         let obj = v.as_object().ok_or_else(|| err("a plan is an object {\"jobs\": [...]}".into()))?;
         if let Some(k) = obj.keys().find(|k| *k != "jobs" && !k.starts_with('_')) {
             return Err(err(format!("unknown field `{k}`: a plan has only `jobs`")));
@@ -143,6 +192,8 @@ impl Plan {
             .ok_or_else(|| err("field jobs: must be a list of jobs".into()))?;
         let mut out: Vec<Job> = Vec::new();
         for (i, j) in jobs.iter().enumerate() {
+            // `_comment` keys are notes, inside a job as at the top level.
+            let j = &crate::spec::strip_comments(j.clone());
             let name = j.get("name").and_then(|n| n.as_str()).map(String::from);
             let label = format!("job {} ({})", i + 1, name.as_deref().unwrap_or("unnamed"));
             let job = if j.get("search").is_some() {
@@ -212,8 +263,9 @@ pub enum BatchEnding {
 
 /// Creates a batch directory for `plan` (read from `plan_path`).
 pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<PathBuf> {
-    let text = std::fs::read_to_string(plan_path).map_err(|e| Error::io(plan_path, e))?;
+    let text = store::read_input(plan_path)?;
     let plan = Plan::parse(&text, plan_path)?;
+    check(&plan, plan_path)?;
     let dir = match out {
         Some(d) => {
             if d.join("plan.json").exists() {
@@ -300,17 +352,7 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
         let outcome: Result<(String, String, String)> = match job {
             Job::Search(s) => (|| {
                 if !job_dir.join("spec.json").is_file() {
-                    let o = SearchOverrides {
-                        generations: s.generations,
-                        population: s.population,
-                        datasets: s.datasets,
-                        iterations: s.iterations,
-                        episodes: s.episodes,
-                        seed: s.seed,
-                        stall_generations: s.stall_generations,
-                        seed_config: s.seed_config.clone(),
-                    };
-                    search::prepare(&s.search, &s.presets, &o, Some(&job_dir), Path::new("results"))?;
+                    search::prepare(&s.search, &s.presets, &s.overrides(), Some(&job_dir), Path::new("results"))?;
                 }
                 let controls = Controls { interrupt: c.interrupt, max_hours: remaining, quiet: c.quiet };
                 let exec = make_exec(&job_dir)?;
@@ -337,19 +379,12 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
                         }
                         None => cj.tuned.clone(),
                     };
-                    let o = Overrides {
-                        datasets: cj.datasets,
-                        episodes: cj.episodes,
-                        iterations: cj.iterations,
-                        complexities: cj.complexities.clone(),
-                        sizes: cj.sizes.clone(),
-                    };
                     compare::prepare(
                         &cj.compare,
                         &tuned,
                         &cj.analysis,
                         &cj.learner,
-                        &o,
+                        &cj.overrides(),
                         Some(&job_dir),
                         Path::new("results"),
                     )?;
@@ -443,5 +478,14 @@ mod tests {
         let e = parse(r#"{"jobs": [{"name": "a", "search": "cartpole"}, {"name": "a", "search": "cartpole"}]}"#)
             .unwrap_err();
         assert!(e.contains("job 2 (a)") && e.contains("earlier job"), "{e}");
+    }
+
+    #[test]
+    fn comments_inside_jobs_are_notes_and_duplicate_keys_are_refused() {
+        let p =
+            parse(r#"{"_comment": "a", "jobs": [{"_comment": "why", "name": "s", "search": "cartpole"}]}"#).unwrap();
+        assert_eq!(p.jobs[0].name(), "s");
+        let e = parse(r#"{"jobs": [{"name": "s", "search": "cartpole", "seed": 1, "seed": 2}]}"#).unwrap_err();
+        assert!(e.contains("plan.json") && e.contains("duplicate key `seed`"), "{e}");
     }
 }

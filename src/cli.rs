@@ -695,6 +695,10 @@ fn interrupt_flag() -> &'static AtomicBool {
 
 fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
     use crate::ga::search::{self, SearchOverrides};
+    // Flags are checked before a run directory exists, so a refused command leaves nothing.
+    if let Some(h) = a.max_hours {
+        anyhow::ensure!(h.is_finite() && h > 0.0, "invalid --max-hours = {h}: must be > 0 and finite");
+    }
     let dir = if let Some(dir) = &a.resume {
         search::extend(dir, a.generations, a.stall_generations)?;
         dir.clone()
@@ -718,10 +722,7 @@ fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
         search::prepare(name, &presets, &o, a.out.as_deref(), Path::new("results"))?
     };
     let max_hours = match a.max_hours {
-        Some(h) => {
-            anyhow::ensure!(h.is_finite() && h > 0.0, "invalid --max-hours = {h}: must be > 0");
-            Some(h)
-        }
+        Some(h) => Some(h),
         None => crate::ga::search::load_spec(&dir)?.search.stop.max_hours,
     };
     let controls = crate::ga::search::Controls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
@@ -1109,18 +1110,19 @@ fn hours_until(hhmm: &str) -> Result<f64> {
 }
 
 fn cmd_batch(a: BatchArgs) -> Result<ExitCode> {
-    let dir = match (&a.resume, &a.plan) {
-        (Some(d), _) => d.clone(),
-        (None, Some(plan)) => crate::batch::create(plan, Path::new("results"), a.out.as_deref())?,
-        (None, None) => unreachable!("clap requires PLAN without --resume"),
-    };
+    // The budget is checked before the batch directory exists.
     let max_hours = match (&a.max_hours, &a.until) {
         (Some(h), _) => {
-            anyhow::ensure!(h.is_finite() && *h > 0.0, "invalid --max-hours = {h}: must be > 0");
+            anyhow::ensure!(h.is_finite() && *h > 0.0, "invalid --max-hours = {h}: must be > 0 and finite");
             Some(*h)
         }
         (None, Some(t)) => Some(hours_until(t)?),
         _ => None,
+    };
+    let dir = match (&a.resume, &a.plan) {
+        (Some(d), _) => d.clone(),
+        (None, Some(plan)) => crate::batch::create(plan, Path::new("results"), a.out.as_deref())?,
+        (None, None) => anyhow::bail!("give a plan file, or --resume DIR"),
     };
     if !a.quiet {
         eprintln!("batch → {}", dir.display());
@@ -1136,7 +1138,7 @@ fn cmd_batch(a: BatchArgs) -> Result<ExitCode> {
         }
         crate::batch::BatchEnding::Stopped(reason) => {
             eprintln!("stopped ({reason}): resume with  bfqi-ga batch --resume {}", dir.display());
-            Ok(ExitCode::SUCCESS)
+            Ok(if interrupt_flag().load(Ordering::SeqCst) { ExitCode::from(130) } else { ExitCode::SUCCESS })
         }
     }
 }

@@ -291,6 +291,36 @@ pub fn prepare(
     out: Option<&Path>,
     results: &Path,
 ) -> Result<PathBuf> {
+    let (cfg, info) = resolve(spec_name, tuned, analysis, learner, o)?;
+    let env = cfg.env.env().name();
+    let dir = match out {
+        Some(d) => {
+            if d.join("compare.json").exists() {
+                return Err(Error::File {
+                    path: d.to_path_buf(),
+                    message: format!("already holds a comparison: use --resume {}", d.display()),
+                });
+            }
+            store::create_dir(d)?;
+            d.to_path_buf()
+        }
+        None => store::new_run_dir(&results.join(env), "compare-")?,
+    };
+    create(&dir, &cfg, &info)?;
+    Ok(dir)
+}
+
+/// The configuration and run record a comparison would start with, validated, creating nothing.
+pub fn resolve(
+    spec_name: &str,
+    tuned: &str,
+    analysis: &str,
+    learner: &str,
+    o: &Overrides,
+) -> Result<(CompareConfig, serde_json::Value)> {
+    if let Some(d) = o.datasets {
+        crate::limits::within("datasets", d, 1, crate::limits::DATASETS)?;
+    }
     let (spec, origin) = Spec::resolve(spec_name)?;
     let env = spec.env.env().name().to_string();
     let (tuned_cfg, tuned_from) = TunedConfig::resolve(tuned, &env)?;
@@ -307,26 +337,12 @@ pub fn prepare(
         other => return Err(Error::invalid("learner", other, "must be et, mlp or both")),
     };
     let cfg = CompareConfig::new(&spec, tuned_cfg, analyses, &learners, o)?;
-    let dir = match out {
-        Some(d) => {
-            if d.join("compare.json").exists() {
-                return Err(Error::File {
-                    path: d.to_path_buf(),
-                    message: format!("already holds a comparison: use --resume {}", d.display()),
-                });
-            }
-            store::create_dir(d)?;
-            d.to_path_buf()
-        }
-        None => store::new_run_dir(&results.join(&env), "compare-")?,
-    };
     let info = serde_json::json!({
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": analysis, "learner": learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
     });
-    create(&dir, &cfg, &info)?;
-    Ok(dir)
+    Ok((cfg, info))
 }
 
 /// Creates a comparison run directory's configuration files.

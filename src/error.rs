@@ -35,6 +35,9 @@ pub enum Error {
         /// What the OS said (part of the message, not a separate cause, so it prints once).
         err: std::io::Error,
     },
+    /// A run failed or a check disagreed (exit 1, where bad input is exit 2).
+    #[error("{0}")]
+    Failed(String),
     /// A spec, config or result file is malformed.
     #[error("{path}: {message}")]
     File {

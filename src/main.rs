@@ -6,14 +6,38 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     keep_freed_memory();
-    let cli = bfqi_ga::cli::Cli::parse();
+    let cli = match bfqi_ga::cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if !e.use_stderr() => e.exit(), // --help, --version
+        Err(e) => {
+            // One line, as every other refusal: the error and its tip, without the usage block.
+            let text = e.to_string();
+            let keep: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .take_while(|l| !l.starts_with("Usage:"))
+                .filter(|l| !l.is_empty())
+                .collect();
+            eprintln!("{} (see bfqi-ga --help)", keep.join("; "));
+            return ExitCode::from(2);
+        }
+    };
     match bfqi_ga::cli::run(cli) {
         Ok(code) => code,
         Err(e) => {
             // One line: the chain of contexts, outermost first.
             eprintln!("error: {e:#}");
-            ExitCode::from(2)
+            ExitCode::from(exit_code(&e))
         }
+    }
+}
+
+/// The exit code of an error, decided here for every command: 1 when a run failed or a check
+/// disagreed, 2 for bad input (everything else the library refuses).
+fn exit_code(e: &anyhow::Error) -> u8 {
+    match e.downcast_ref::<bfqi_ga::Error>() {
+        Some(bfqi_ga::Error::Failed(_)) => 1,
+        _ => 2,
     }
 }
 

@@ -13,6 +13,7 @@ use crate::ga::operators::GaParams;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::MlpParams;
 use crate::learn::{Learner, LearnerConfig};
+use crate::store;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -241,7 +242,7 @@ pub fn merge_patch(base: &mut serde_json::Value, patch: &serde_json::Value) {
 }
 
 /// Removes `_`-prefixed keys (comments) at every level.
-fn strip_comments(v: serde_json::Value) -> serde_json::Value {
+pub(crate) fn strip_comments(v: serde_json::Value) -> serde_json::Value {
     use serde_json::Value;
     match v {
         Value::Object(m) => Value::Object(
@@ -257,17 +258,18 @@ fn strip_comments(v: serde_json::Value) -> serde_json::Value {
 pub fn load_preset(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
     let local = PathBuf::from(format!("searches/presets/{name_or_path}.json"));
     let path = PathBuf::from(name_or_path);
-    let (text, origin) = if local.is_file() {
-        (std::fs::read_to_string(&local).map_err(|e| Error::io(&local, e))?, local)
-    } else if path.is_file() {
-        (std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?, path)
+    // Something at the path that is not a readable file is refused, never replaced by a built-in.
+    let (text, origin) = if store::something_at(&local) {
+        (store::read_input(&local)?, local)
+    } else if store::something_at(&path) {
+        (store::read_input(&path)?, path)
     } else if let Some((n, t)) = BUILTIN_PRESETS.iter().find(|(n, _)| *n == name_or_path) {
         (t.to_string(), PathBuf::from(format!("<built-in searches/presets/{n}.json>")))
     } else {
         let names: Vec<&str> = BUILTIN_PRESETS.iter().map(|(n, _)| *n).collect();
         return Err(Error::invalid("preset", name_or_path, format!("must be one of {} or a file", names.join(", "))));
     };
-    let v = serde_json::from_str(&text).map_err(|e| file_error(&origin, e.to_string()))?;
+    let v = store::parse_json(&text, &origin)?;
     Ok((v, origin))
 }
 
@@ -298,8 +300,7 @@ impl Spec {
 
     /// Parses spec text into JSON (comments removed), without validating it as a spec.
     pub fn parse_value(text: &str, origin: &Path) -> Result<serde_json::Value> {
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_error(origin, e.to_string()))?;
-        Ok(strip_comments(value))
+        Ok(strip_comments(store::parse_json(text, origin)?))
     }
 
     /// The JSON text of `bicycle` (→ `searches/bicycle.json` or the built-in copy) or of a file,
@@ -307,16 +308,16 @@ impl Spec {
     pub fn resolve_value(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
         if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
             let local = PathBuf::from(format!("searches/{name}.json"));
-            if local.is_file() {
-                let t = std::fs::read_to_string(&local).map_err(|e| Error::io(&local, e))?;
+            if store::something_at(&local) {
+                let t = store::read_input(&local)?;
                 return Ok((Self::parse_value(&t, &local)?, local));
             }
             let origin = PathBuf::from(format!("<built-in searches/{name}.json>"));
             return Ok((Self::parse_value(text, &origin)?, origin));
         }
         let path = PathBuf::from(name_or_path);
-        if path.is_file() {
-            let t = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+        if store::something_at(&path) {
+            let t = store::read_input(&path)?;
             return Ok((Self::parse_value(&t, &path)?, path));
         }
         Err(Error::UnknownEnv {
@@ -341,7 +342,7 @@ impl Spec {
 
     /// Reads and validates a spec file.
     pub fn load(path: &Path) -> Result<Spec> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = store::read_input(path)?;
         Self::parse(&text, path)
     }
 

@@ -43,6 +43,90 @@ pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     serde_json::from_str(&text).map_err(|e| Error::File { path: path.to_path_buf(), message: e.to_string() })
 }
 
+/// Whether anything is at `path`: a file, a directory, a FIFO, or a link (even a dangling one).
+pub fn something_at(path: &Path) -> bool {
+    fs::symlink_metadata(path).is_ok()
+}
+
+/// Reads an input file (spec, preset, plan, tuned config) as text. A directory, a FIFO or device
+/// (reading one would block) or a dangling link is refused in one line naming it.
+pub fn read_input(path: &Path) -> Result<String> {
+    let refuse = |message: &str| Error::File { path: path.to_path_buf(), message: message.into() };
+    match fs::metadata(path) {
+        Err(_) if something_at(path) => return Err(refuse("is a link to nothing (dangling)")),
+        Err(e) => return Err(Error::io(path, e)),
+        Ok(m) if m.is_dir() => return Err(refuse("is a directory, not a file")),
+        Ok(m) if !m.is_file() => return Err(refuse("is not a regular file (a FIFO or a device)")),
+        Ok(_) => {}
+    }
+    fs::read_to_string(path).map_err(|e| Error::io(path, e))
+}
+
+/// Parses JSON text, refusing a key that appears twice in one object (serde_json keeps the last
+/// silently, so an edited file could say one thing and mean another); errors name the file.
+pub fn parse_json(text: &str, origin: &Path) -> Result<serde_json::Value> {
+    serde_json::from_str::<Strict>(text)
+        .map(|s| s.0)
+        .map_err(|e| Error::File { path: origin.to_path_buf(), message: e.to_string() })
+}
+
+/// A JSON value deserialised with a check for duplicate keys.
+struct Strict(serde_json::Value);
+
+impl<'de> serde::Deserialize<'de> for Strict {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_any(StrictVisitor)
+    }
+}
+
+struct StrictVisitor;
+
+impl<'de> serde::de::Visitor<'de> for StrictVisitor {
+    type Value = Strict;
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, v: bool) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_i64<E>(self, v: i64) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_u64<E>(self, v: u64) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_f64<E>(self, v: f64) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_str<E>(self, v: &str) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_string<E>(self, v: String) -> std::result::Result<Strict, E> {
+        Ok(Strict(v.into()))
+    }
+    fn visit_unit<E>(self) -> std::result::Result<Strict, E> {
+        Ok(Strict(serde_json::Value::Null))
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> std::result::Result<Strict, A::Error> {
+        let mut v = Vec::new();
+        while let Some(Strict(x)) = seq.next_element()? {
+            v.push(x);
+        }
+        Ok(Strict(serde_json::Value::Array(v)))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(self, mut map: A) -> std::result::Result<Strict, A::Error> {
+        let mut m = serde_json::Map::new();
+        while let Some(k) = map.next_key::<String>()? {
+            if m.contains_key(&k) {
+                return Err(serde::de::Error::custom(format!("duplicate key `{k}`")));
+            }
+            let Strict(v) = map.next_value()?;
+            m.insert(k, v);
+        }
+        Ok(Strict(serde_json::Value::Object(m)))
+    }
+}
+
 /// Creates a directory and its parents; errors name it.
 pub fn create_dir(path: &Path) -> Result<()> {
     fs::create_dir_all(path).map_err(|e| Error::io(path, e))

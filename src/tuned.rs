@@ -108,13 +108,13 @@ impl TunedConfig {
 
     /// Reads and validates a tuned config; errors name the file and the field.
     pub fn load(path: &Path) -> Result<TunedConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::store::read_input(path)?;
         Self::parse(&text, path)
     }
 
     fn parse(text: &str, origin: &Path) -> Result<TunedConfig> {
         let file_err = |message: String| Error::File { path: origin.to_path_buf(), message };
-        let value: serde_json::Value = serde_json::from_str(text).map_err(|e| file_err(e.to_string()))?;
+        let value = crate::store::parse_json(text, origin)?;
         crate::error::expect_object(&value, origin, "a tuned config")?;
         let t: TunedConfig = crate::error::from_json(value, origin, "")?;
         t.validate().map_err(|e| file_err(e.to_string()))?;

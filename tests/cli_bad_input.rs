@@ -145,3 +145,77 @@ fn merge(base: &mut serde_json::Value, patch: &serde_json::Value) {
         (b, p) => *b = p.clone(),
     }
 }
+
+#[test]
+fn inputs_that_are_not_regular_files_or_repeat_a_key_are_refused() {
+    let d = tmp("kinds");
+    let dup = patched("cartpole", "{}").replacen("{", r#"{"seed": 1, "#, 1);
+    let s = write(&d, "dup.json", &dup);
+    refused(&d, &["search", &s], &["dup.json: duplicate key `seed`"]);
+    std::fs::create_dir(d.join("dir.json")).unwrap();
+    refused(&d, &["search", "dir.json"], &["dir.json: is a directory, not a file"]);
+    refused(&d, &["search", "cartpole", "--preset", "dir.json"], &["dir.json: is a directory, not a file"]);
+    std::os::unix::fs::symlink(d.join("nowhere.json"), d.join("dangling.json")).unwrap();
+    refused(&d, &["compare", "cartpole", "--tuned", "dangling.json"], &["dangling.json: is a link to nothing"]);
+    // A FIFO would block a reader forever: refused without opening it.
+    let fifo = d.join("fifo.json");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let mut child =
+        bin().current_dir(&d).args(["search", "fifo.json"]).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let started = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if started.elapsed().as_secs() > 20 {
+            child.kill().unwrap();
+            panic!("bfqi-ga blocked on a FIFO");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("fifo.json: is not a regular file"));
+    // A `searches/<env>.json` that is not a file is refused, not replaced by the built-in copy.
+    std::fs::create_dir_all(d.join("searches/cartpole.json")).unwrap();
+    refused(&d, &["search", "cartpole"], &["searches/cartpole.json: is a directory, not a file"]);
+}
+
+#[test]
+fn flags_and_every_job_of_a_plan_are_checked_before_anything_is_created() {
+    let d = tmp("before");
+    for h in ["0", "NaN", "inf"] {
+        refused(&d, &["search", "cartpole", "--quick", "--out", "run", "--max-hours", h], &["invalid --max-hours"]);
+    }
+    // clap's own refusals are one line too (the error and its tip, no usage block).
+    refused(&d, &["search", "cartpole", "--max-hours", "-1"], &["unexpected argument '-1'", "tip:"]);
+    let plan = write(
+        &d,
+        "plan.json",
+        r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick"]},
+                     {"name": "c", "compare": "cartpole", "tuned": "from:s", "analysis": "bogus"}]}"#,
+    );
+    refused(&d, &["batch", &plan], &["plan.json: job 2 (c): invalid analysis = bogus"]);
+    let plan2 = write(&d, "plan2.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "population": 1}]}"#);
+    refused(&d, &["batch", &plan2], &["plan2.json: job 1 (s)", "search.ga.population = 1"]);
+    let ok_plan = write(&d, "ok.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick"]}]}"#);
+    refused(&d, &["batch", &ok_plan, "--until", "25:00"], &["invalid --until = 25:00"]);
+    refused(&d, &["batch", &ok_plan, "--max-hours", "0"], &["invalid --max-hours"]);
+    refused(&d, &["compare", "cartpole", "--datasets", "0", "--out", "cmp"], &["invalid datasets = 0"]);
+    nothing_created(&d, &["plan.json", "plan2.json", "ok.json"]);
+}
+
+#[test]
+fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
+    let d = tmp("diverged");
+    let s = write(&d, "lr.json", &patched("cartpole", r#"{"search": {"network": {"learning_rate": 1e300}}}"#));
+    let o = bin()
+        .current_dir(&d)
+        .args(["search", &s, "--quick", "--population", "2", "--generations", "1", "--datasets", "1"])
+        .args(["--episodes", "20", "--iterations", "2", "--out", "run", "--quiet"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("every setting diverged"), "{err}");
+    // The records are there to look at.
+    let gen0 = std::fs::read_to_string(d.join("run/generations.jsonl")).unwrap();
+    assert!(gen0.contains("\"fitness\":null"), "{gen0}");
+}

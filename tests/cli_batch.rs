@@ -34,13 +34,23 @@ fn read(p: PathBuf) -> String {
 #[test]
 fn a_failing_job_is_recorded_and_the_others_go_on() {
     let d = tmp("fail");
-    let p = plan(&d, &[r#"{"name": "bad", "search": "no-such-spec.json"}"#, SEARCH]);
+    // A job that passes every check and fails when it runs: its network's learning rate makes
+    // every unit diverge. (A job that cannot start is refused with the plan, before anything runs.)
+    let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/cartpole.json");
+    let mut v: serde_json::Value = serde_json::from_str(&read(spec)).unwrap();
+    v["search"]["network"]["learning_rate"] = serde_json::json!(1e300);
+    std::fs::write(d.join("diverges.json"), v.to_string()).unwrap();
+    let bad = format!(
+        r#"{{"name": "bad", "search": "{}", "presets": ["quick"], "population": 2, "generations": 1, "datasets": 1, "episodes": 20, "iterations": 2}}"#,
+        d.join("diverges.json").display()
+    );
+    let p = plan(&d, &[&bad, SEARCH]);
     let out = d.join("b");
     let o = batch(&[p.to_str().unwrap(), "--out", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
     let summary = read(out.join("summary.md"));
     let bad = summary.lines().find(|l| l.starts_with("| bad ")).unwrap();
-    assert!(bad.contains("failed") && bad.contains("no-such-spec.json"), "{bad}");
+    assert!(bad.contains("failed") && bad.contains("every setting diverged"), "{bad}");
     let good = summary.lines().find(|l| l.starts_with("| s ")).unwrap();
     assert!(good.contains("finished") && good.contains("best fitness"), "{good}");
     assert!(out.join("s").join("best.json").is_file());

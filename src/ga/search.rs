@@ -265,6 +265,27 @@ pub fn prepare(
     out: Option<&Path>,
     results: &Path,
 ) -> Result<PathBuf> {
+    let (spec, info) = resolve(spec_name, presets, o)?;
+    let dir = match out {
+        Some(d) => {
+            if d.join("spec.json").exists() {
+                return Err(Error::File {
+                    path: d.to_path_buf(),
+                    message: format!("already holds a run: use --resume {}", d.display()),
+                });
+            }
+            store::create_dir(d)?;
+            d.to_path_buf()
+        }
+        None => store::new_run_dir(&results.join(&info.env), "search-")?,
+    };
+    create(&dir, &spec, &info)?;
+    Ok(dir)
+}
+
+/// The spec and run record a search would start with, every layer validated, creating nothing
+/// (what `prepare` and a batch plan's check before it runs use).
+pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Result<(Spec, RunInfo)> {
     // Each layer is validated as written, so an error names the file that holds it: the spec
     // file alone, then after each preset (naming the preset), then after the flags.
     let (mut value, origin) = Spec::resolve_value(spec_name)?;
@@ -324,19 +345,6 @@ pub fn prepare(
         overrides.insert("seed_config".into(), serde_json::json!(o.seed_config));
         spec = Spec::from_value(value, &origin).map_err(after)?;
     }
-    let dir = match out {
-        Some(d) => {
-            if d.join("spec.json").exists() {
-                return Err(Error::File {
-                    path: d.to_path_buf(),
-                    message: format!("already holds a run: use --resume {}", d.display()),
-                });
-            }
-            store::create_dir(d)?;
-            d.to_path_buf()
-        }
-        None => store::new_run_dir(&results.join(&env), "search-")?,
-    };
     let info = RunInfo {
         kind: "search".into(),
         env,
@@ -348,8 +356,7 @@ pub fn prepare(
         commit: env!("BFQI_GA_COMMIT").into(),
         resumed: Vec::new(),
     };
-    create(&dir, &spec, &info)?;
-    Ok(dir)
+    Ok((spec, info))
 }
 
 /// The chromosomes of tuned configs (`thesis` or files) for `search.seeded`: each must be for
@@ -742,6 +749,17 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         write_json(&path, &info)?;
     }
     let ending = run_generations(dir, &spec, exec, controls)?;
+    if matches!(ending, Ending::Finished(_)) {
+        let state: RunState = read_json(&dir.join("state.json"))?;
+        if state.best_fitness.is_none() {
+            // Every individual scored −∞: the records say so, and the command fails (exit 1).
+            return Err(Error::Failed(format!(
+                "{}: every setting diverged on some dataset (fitness −∞ throughout): no tuned config; \
+                 see the units' `diverged` reasons",
+                dir.display()
+            )));
+        }
+    }
     if let (Ending::Finished(_), Some(rule)) = (&ending, &spec.search.validate) {
         let v = super::validate::run(dir, rule, controls.quiet)?;
         if !controls.quiet {
