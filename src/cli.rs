@@ -750,6 +750,9 @@ fn cmd_reproduce(a: ReproduceArgs) -> Result<ExitCode> {
         Ok(ExitCode::SUCCESS)
     } else {
         println!("NOT reproduced: recorded fitness {}, derived {}", show(r.recorded), show(r.derived));
+        for m in &r.mismatches {
+            println!("  {m}");
+        }
         for (d, rec, der) in &r.differences {
             println!("  dataset {d}: recorded {}, derived {}", show(*rec), show(*der));
         }

@@ -326,6 +326,14 @@ impl Spec {
         })
     }
 
+    /// The hash of everything that determines a unit's result: the spec without its stop rules
+    /// (which `search --resume --generations` may change), recorded in units and `run.json`.
+    pub fn results_hash(&self) -> String {
+        let mut s = self.clone();
+        s.search.stop = StopRules { generations: 1, max_hours: None, stall_generations: None };
+        s.hash()
+    }
+
     /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.
     pub fn hash(&self) -> String {
         let text = serde_json::to_string(self).expect("a spec serialises");

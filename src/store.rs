@@ -127,6 +127,18 @@ impl<'de> serde::de::Visitor<'de> for StrictVisitor {
     }
 }
 
+/// Removes the temporary files that interrupted atomic writes left in `dir` (`.<name>.tmp<pid>`).
+pub fn remove_temporaries(dir: &Path) -> Result<()> {
+    let Ok(entries) = fs::read_dir(dir) else { return Ok(()) };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') && name.contains(".tmp") && e.path().is_file() {
+            fs::remove_file(e.path()).map_err(|err| Error::io(e.path(), err))?;
+        }
+    }
+    Ok(())
+}
+
 /// Creates a directory and its parents; errors name it.
 pub fn create_dir(path: &Path) -> Result<()> {
     fs::create_dir_all(path).map_err(|e| Error::io(path, e))
@@ -195,7 +207,13 @@ impl RunLock {
                     let their_host = parts.next().unwrap_or("").to_string();
                     let alive = match pid {
                         Some(p) if their_host == host() => Path::new(&format!("/proc/{p}")).exists(),
-                        // Another host, or unreadable: assume alive, the user can remove the lock.
+                        // Empty or unreadable (a full disk while it was written): no process can
+                        // be named as its holder, so it is stale.
+                        None => {
+                            eprintln!("warning: {}: empty or unreadable lock, treated as stale", path.display());
+                            false
+                        }
+                        // Another host: assume alive, the user can remove the lock.
                         _ => true,
                     };
                     if alive {

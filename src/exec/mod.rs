@@ -43,12 +43,16 @@ pub fn worker(dir: &Path, unit: &str) -> Result<()> {
             ),
         });
     }
-    if dir.join("units").join(format!("{unit}.json")).is_file() {
-        return Ok(());
-    }
     if dir.join("spec.json").is_file() {
         let spec = crate::ga::search::load_spec(dir)?;
-        crate::ga::search::Evaluator::new(spec, dir).run_unit(unit)
+        let ev = crate::ga::search::Evaluator::new(spec, dir);
+        // A stored unit is reused only if it verifies (a damaged one is computed again).
+        if ev.load_unit(unit).is_some() {
+            return Ok(());
+        }
+        ev.run_unit(unit)
+    } else if dir.join("units").join(format!("{unit}.json")).is_file() {
+        Ok(())
     } else if dir.join("compare.json").is_file() {
         let cfg = crate::compare::load(dir)?;
         crate::compare::run_unit(dir, &cfg, unit)

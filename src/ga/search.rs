@@ -55,6 +55,10 @@ pub struct RunInfo {
     /// the commit of the binary, which may differ from `commit`.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub resumed: Vec<Resumed>,
+    /// [`Spec::results_hash`] of `spec.json` when the run began (recorded at the first resume for
+    /// runs created before it was): a resume refuses a spec.json changed since.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec_hash: Option<String>,
 }
 
 /// One invocation that continued a search, in `run.json`.
@@ -355,6 +359,7 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         version: env!("CARGO_PKG_VERSION").into(),
         commit: env!("BFQI_GA_COMMIT").into(),
         resumed: Vec::new(),
+        spec_hash: Some(spec.results_hash()),
     };
     Ok((spec, info))
 }
@@ -672,7 +677,7 @@ impl Runner<'_> {
         best: Option<&IndividualRecord>,
     ) -> Result<std::result::Result<(), String>> {
         let missing: Vec<(Decoded, usize)> =
-            want.iter().copied().filter(|(s, d)| !self.ev.unit_path(&unit_id(s, *d)).is_file()).collect();
+            want.iter().copied().filter(|(s, d)| self.ev.load_unit(&unit_id(s, *d)).is_none()).collect();
         let mut planned = expected_seconds(self.ev, &missing);
         // Longest first (stable: ties keep setting and dataset order), so that the last units of a
         // generation are short and no core waits long for the others.
@@ -714,7 +719,7 @@ impl Runner<'_> {
             }
         };
         self.exec.run(&ids, &work, &done, &self.stop)?;
-        let missing = ids.iter().any(|id| !self.ev.unit_path(id).is_file());
+        let missing = ids.iter().any(|id| self.ev.load_unit(id).is_none());
         if self.stop.load(Ordering::SeqCst) || self.controls.interrupt.load(Ordering::SeqCst) || missing {
             let reason = if self.budget_hit.load(Ordering::SeqCst) {
                 format!("time budget of {} h reached", self.controls.max_hours.unwrap_or(0.0))
@@ -741,13 +746,32 @@ pub fn ga_seed(spec: &Spec) -> u64 {
 pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
     let spec = load_spec(dir)?;
     let lock = RunLock::acquire(dir)?;
+    let path = dir.join("run.json");
+    let mut info: RunInfo = read_json(&path)?;
+    let hash = spec.results_hash();
+    match &info.spec_hash {
+        Some(h) if *h != hash => {
+            return Err(Error::File {
+                path: dir.join("spec.json"),
+                message: format!(
+                    "changed since the run began (results hash {hash}, run.json records {h}): resuming would mix \
+                     results of two specs; restore it or start a new run"
+                ),
+            });
+        }
+        _ => {}
+    }
     if dir.join("state.json").is_file() {
         // A run that began before: say which binary continues it.
-        let path = dir.join("run.json");
-        let mut info: RunInfo = read_json(&path)?;
         info.resumed.push(Resumed { at: store::now_utc().1, commit: env!("BFQI_GA_COMMIT").into() });
+        info.spec_hash = Some(hash);
         write_json(&path, &info)?;
     }
+    // What a kill can leave: a deleted units/ is made again, and temporary files of interrupted
+    // atomic writes are removed (the lock is ours, so no writer is alive).
+    store::create_dir(&dir.join("units"))?;
+    store::remove_temporaries(dir)?;
+    store::remove_temporaries(&dir.join("units"))?;
     let ending = run_generations(dir, &spec, exec, controls)?;
     if matches!(ending, Ending::Finished(_)) {
         let state: RunState = read_json(&dir.join("state.json"))?;
@@ -892,7 +916,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
         for x in &distinct {
             for d in 0..s.datasets {
                 let id = unit_id(x, d);
-                if ev.unit_path(&id).is_file() && seen.insert(id) {
+                if ev.load_unit(&id).is_some() && seen.insert(id) {
                     new_units += 1;
                 }
             }
@@ -1054,12 +1078,16 @@ pub struct Reproduction {
     pub derived: Option<f64>,
     /// Per dataset: (index, recorded, derived) where they differ.
     pub differences: Vec<(usize, Option<f64>, Option<f64>)>,
+    /// Stored fields that disagree with what the spec and chromosome give (an edited best.json).
+    pub mismatches: Vec<String>,
 }
 
 impl Reproduction {
     /// True when every score matches bit for bit.
     pub fn matches(&self) -> bool {
-        self.differences.is_empty() && self.recorded.map(f64::to_bits) == self.derived.map(f64::to_bits)
+        self.differences.is_empty()
+            && self.mismatches.is_empty()
+            && self.recorded.map(f64::to_bits) == self.derived.map(f64::to_bits)
     }
 }
 
@@ -1086,6 +1114,26 @@ pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
     }
     let setting = decode(c, &spec.search.genes);
     let ev = Evaluator::new(spec.clone(), Path::new("."));
+    // Every stored field must be what the spec and the chromosome give.
+    let s = &spec.search;
+    let mut mismatches = Vec::new();
+    let mut differs = |field: &str, stored: String, derived: String| {
+        if stored != derived {
+            mismatches.push(format!("{field}: stored {stored}, the spec and chromosome give {derived}"));
+        }
+    };
+    differs("activation", format!("{:?}", t.activation), format!("{:?}", setting.activation));
+    differs("delta_min", format!("{:?}", t.delta_min), format!("{:?}", setting.delta_min));
+    differs("patience", t.patience.to_string(), setting.patience.to_string());
+    let network = |n: &crate::learn::mlp::MlpParams| serde_json::to_string(n).unwrap_or_default();
+    differs("network", network(&t.network), network(&ev.network(&setting)));
+    differs("algorithm", t.algorithm.name().into(), s.algorithm.name().into());
+    differs("actions", format!("{:?}", t.actions), format!("{:?}", s.actions));
+    differs("iterations", t.iterations.to_string(), s.iterations.to_string());
+    differs("episodes", t.episodes.to_string(), s.episodes.to_string());
+    differs("datasets", t.datasets.to_string(), s.datasets.to_string());
+    differs("scores", format!("{} values", t.scores.len()), format!("{} values", s.datasets));
+    differs("seed", t.seed.to_string(), spec.seed.to_string());
     let scores: Vec<Option<f64>> = (0..spec.search.datasets)
         .into_par_iter()
         .map(|d| ev.evaluate(&setting, d).map(|u| u.score))
@@ -1096,7 +1144,7 @@ pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
         .filter(|(d, s)| t.scores.get(*d).copied().flatten().map(f64::to_bits) != s.map(f64::to_bits))
         .map(|(d, s)| (d, t.scores.get(d).copied().flatten(), *s))
         .collect();
-    Ok(Reproduction { recorded: t.fitness, derived: finite(fitness(&scores)), differences })
+    Ok(Reproduction { recorded: t.fitness, derived: finite(fitness(&scores)), differences, mismatches })
 }
 
 #[cfg(test)]

@@ -43,6 +43,22 @@ pub struct UnitResult {
     /// cap) and their last losses, the Bellman residual, and its seconds.
     #[serde(default)]
     pub iterations: Vec<IterationRecord>,
+    /// [`Spec::results_hash`] of the run that computed it: a unit from another spec is not reused.
+    /// (Absent in units written before it was recorded.)
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec_hash: Option<String>,
+    /// FNV-1a of the unit's JSON without this field: a damaged or edited file is recomputed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checksum: Option<String>,
+}
+
+impl UnitResult {
+    /// The checksum of the unit's content (its JSON with `checksum` absent).
+    pub fn content_checksum(&self) -> String {
+        let bare = UnitResult { checksum: None, ..self.clone() };
+        let text = serde_json::to_string(&bare).expect("a unit serialises");
+        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+    }
 }
 
 /// The activation's name in unit ids and files.
@@ -141,9 +157,11 @@ impl Role {
 /// Evaluates units of one search: datasets are collected lazily and shared.
 pub struct Evaluator {
     spec: Spec,
+    results_hash: String,
     dir: PathBuf,
     role: Role,
     data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
+    warned: Mutex<std::collections::HashSet<String>>,
 }
 
 impl Evaluator {
@@ -154,7 +172,14 @@ impl Evaluator {
 
     /// An evaluator of `role`'s datasets for the search in `dir`.
     pub fn with_role(spec: Spec, dir: &Path, role: Role) -> Self {
-        Evaluator { spec, dir: dir.to_path_buf(), role, data: Mutex::new(HashMap::new()) }
+        Evaluator {
+            results_hash: spec.results_hash(),
+            spec,
+            dir: dir.to_path_buf(),
+            role,
+            data: Mutex::new(HashMap::new()),
+            warned: Mutex::new(Default::default()),
+        }
     }
 
     /// The resolved spec.
@@ -238,7 +263,7 @@ impl Evaluator {
             Model { info, q: QFunction::Nets(members) }
         });
         let last = rec.iterations.last();
-        let unit = UnitResult {
+        let mut unit = UnitResult {
             setting: *s,
             dataset: d,
             score: rec.final_score(),
@@ -247,7 +272,10 @@ impl Evaluator {
             epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
             seconds: t.elapsed().as_secs_f64(),
             iterations: rec.iterations,
+            spec_hash: Some(self.results_hash.clone()),
+            checksum: None,
         };
+        unit.checksum = Some(unit.content_checksum());
         Ok((unit, model))
     }
 
@@ -267,9 +295,38 @@ impl Evaluator {
         write_json(&self.unit_path(id), &r)
     }
 
-    /// Reads a stored unit, if present and whole.
+    /// Reads a stored unit, if present, whole and this run's: a file that does not parse, whose
+    /// checksum or spec hash disagrees, or that names another unit is treated as absent (so it
+    /// is computed again), with a warning the first time.
     pub fn load_unit(&self, id: &str) -> Option<UnitResult> {
-        read_json(&self.unit_path(id)).ok()
+        let path = self.unit_path(id);
+        if !path.is_file() {
+            return None;
+        }
+        let problem = match read_json::<UnitResult>(&path) {
+            Err(e) => format!("unreadable ({e})"),
+            Ok(u) => match self.check_unit(&u, id) {
+                None => return Some(u),
+                Some(p) => p,
+            },
+        };
+        if self.warned.lock().expect("warned").insert(id.to_string()) {
+            eprintln!("warning: {}: {problem}; it will be computed again", path.display());
+        }
+        None
+    }
+
+    fn check_unit(&self, u: &UnitResult, id: &str) -> Option<String> {
+        if unit_id(&u.setting, u.dataset) != id {
+            return Some(format!("holds unit {}", unit_id(&u.setting, u.dataset)));
+        }
+        if u.checksum.as_ref().is_some_and(|c| *c != u.content_checksum()) {
+            return Some("its checksum does not match its content (damaged or edited)".into());
+        }
+        match &u.spec_hash {
+            Some(h) if *h != self.results_hash => Some(format!("computed under another spec (hash {h})")),
+            _ => None,
+        }
     }
 }
 

@@ -1,0 +1,163 @@
+//! `--resume` verifies what it reads, and `reproduce` re-derives every stored field.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bfqi-resume-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn read(p: &Path) -> String {
+    std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+fn search(dir: &Path) -> Output {
+    bin()
+        .args(["search", "cartpole", "--quick", "--population", "4", "--generations", "2", "--datasets", "2"])
+        .args(["--episodes", "20", "--iterations", "2", "--seed", "8", "--quiet", "--out", dir.to_str().unwrap()])
+        .output()
+        .unwrap()
+}
+
+fn resume(dir: &Path) -> Output {
+    bin().args(["search", "--resume", dir.to_str().unwrap(), "--quiet"]).output().unwrap()
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+/// Each generation's individuals with their scores (times and run records aside).
+fn scores(dir: &Path) -> Vec<Value> {
+    read(&dir.join("generations.jsonl"))
+        .lines()
+        .map(|l| {
+            let g: Value = serde_json::from_str(l).unwrap();
+            g["individuals"].as_array().unwrap().iter().map(|i| (i["setting"].clone(), i["scores"].clone())).collect()
+        })
+        .map(|v: Vec<(Value, Value)>| serde_json::json!(v))
+        .collect()
+}
+
+#[test]
+fn damaged_directories_resume_to_the_uninterrupted_result() {
+    let d = tmp("damaged");
+    let whole = d.join("whole");
+    let o = search(&whole);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let best = read(&whole.join("best.json"));
+
+    // A truncated unit, a temporary file a kill left behind and an empty lock (full disk).
+    let cut = d.join("cut");
+    copy_dir(&whole, &cut);
+    let unit = std::fs::read_dir(cut.join("units")).unwrap().next().unwrap().unwrap().path();
+    let text = read(&unit);
+    std::fs::write(&unit, &text[..text.len() / 2]).unwrap();
+    std::fs::write(cut.join("units/.x.json.tmp999"), "{").unwrap();
+    std::fs::write(cut.join("lock"), "").unwrap();
+    let o = resume(&cut);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("will be computed again") && err.contains("treated as stale"), "{err}");
+    assert_eq!(scores(&cut), scores(&whole));
+    assert_eq!(read(&cut.join("best.json")), best);
+    assert!(!cut.join("units/.x.json.tmp999").exists(), "temporary file left");
+    let again: Value = serde_json::from_str(&read(&unit)).unwrap();
+    assert!(again["checksum"].is_string() && again["spec_hash"].is_string());
+
+    // An edited unit (its score changed, checksum kept) is recomputed too.
+    let edited = d.join("edited");
+    copy_dir(&whole, &edited);
+    let mut u: Value = serde_json::from_str(&read(&unit_in(&edited, &unit))).unwrap();
+    u["score"] = serde_json::json!(1234.5);
+    std::fs::write(unit_in(&edited, &unit), u.to_string()).unwrap();
+    let o = resume(&edited);
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stderr).contains("checksum"));
+    assert_eq!(read(&edited.join("best.json")), best);
+
+    // A deleted units/ is made again and every unit recomputed.
+    let bare = d.join("bare");
+    copy_dir(&whole, &bare);
+    std::fs::remove_dir_all(bare.join("units")).unwrap();
+    let o = resume(&bare);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(scores(&bare), scores(&whole));
+
+    // An edited spec.json is refused: resuming would mix results of two specs.
+    let respec = d.join("respec");
+    copy_dir(&whole, &respec);
+    let mut spec: Value = serde_json::from_str(&read(&respec.join("spec.json"))).unwrap();
+    spec["search"]["episodes"] = serde_json::json!(21);
+    std::fs::write(respec.join("spec.json"), spec.to_string()).unwrap();
+    let o = resume(&respec);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("spec.json: changed since the run began"), "{err}");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+fn unit_in(dir: &Path, like: &Path) -> PathBuf {
+    dir.join("units").join(like.file_name().unwrap())
+}
+
+#[test]
+fn reproduce_rederives_every_stored_field() {
+    let d = tmp("reproduce");
+    let run = d.join("run");
+    assert!(search(&run).status.success());
+    let best: Value = serde_json::from_str(&read(&run.join("best.json"))).unwrap();
+    let check = |name: &str, edit: &dyn Fn(&mut Value), want: &str| {
+        let mut b = best.clone();
+        edit(&mut b);
+        let p = d.join(name);
+        std::fs::write(&p, b.to_string()).unwrap();
+        let o = bin().args(["reproduce", p.to_str().unwrap()]).output().unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(o.status.code(), Some(1), "{name}: {out} {}", String::from_utf8_lossy(&o.stderr));
+        assert!(out.contains("NOT reproduced") && out.contains(want), "{name}: {out}");
+    };
+    check(
+        "delta.json",
+        &|b| {
+            let x = b["delta_min"].as_f64().unwrap() * 2.0;
+            b["delta_min"] = serde_json::json!(x);
+            b["network"]["delta_min"] = serde_json::json!(x);
+        },
+        "delta_min: stored",
+    );
+    check(
+        "patience.json",
+        &|b| {
+            let p = b["patience"].as_u64().unwrap() + 1;
+            b["patience"] = serde_json::json!(p);
+            b["network"]["patience"] = serde_json::json!(p);
+        },
+        "patience: stored",
+    );
+    check("lr.json", &|b| b["network"]["learning_rate"] = serde_json::json!(0.5), "network: stored");
+    check(
+        "extra.json",
+        &|b| b["scores"].as_array_mut().unwrap().push(serde_json::json!(1.0)),
+        "scores: stored 3 values",
+    );
+    let o = bin().args(["reproduce", run.join("best.json").to_str().unwrap()]).output().unwrap();
+    assert!(o.status.success(), "the untouched best.json reproduces");
+    std::fs::remove_dir_all(d).unwrap();
+}
