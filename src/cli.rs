@@ -248,6 +248,9 @@ pub struct SearchArgs {
     /// random individual; recorded as `seeded` in generations.jsonl.
     #[arg(long, value_name = "thesis|FILE", conflicts_with = "resume")]
     pub seed_config: Vec<String>,
+    /// Check the spec, presets and flags and print the resolved spec as JSON, creating nothing.
+    #[arg(long, conflicts_with = "resume")]
+    pub dry_run: bool,
     /// No progress output (the run directory still records everything).
     #[arg(long)]
     pub quiet: bool,
@@ -316,6 +319,10 @@ pub struct BatchArgs {
     /// Batch directory (default: results/batches/<plan>-<timestamp>).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Check the plan (every job's spec, presets, tuned config and overrides) and list its jobs,
+    /// creating nothing.
+    #[arg(long, conflicts_with = "resume")]
+    pub dry_run: bool,
     /// No progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -718,7 +725,12 @@ fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
             stall_generations: a.stall_generations,
             seed_config: a.seed_config.clone(),
         };
-        let name = a.env.as_deref().expect("clap requires ENV without --resume");
+        let name = a.env.as_deref().context("give an environment or spec file, or --resume DIR")?;
+        if a.dry_run {
+            let (spec, _) = search::resolve(name, &presets, &o)?;
+            println!("{}", serde_json::to_string_pretty(&spec)?);
+            return Ok(ExitCode::SUCCESS);
+        }
         search::prepare(name, &presets, &o, a.out.as_deref(), Path::new("results"))?
     };
     let max_hours = match a.max_hours {
@@ -1122,6 +1134,15 @@ fn cmd_batch(a: BatchArgs) -> Result<ExitCode> {
         (None, Some(t)) => Some(hours_until(t)?),
         _ => None,
     };
+    if let (true, Some(plan)) = (a.dry_run, &a.plan) {
+        let p = crate::batch::Plan::parse(&store::read_input(plan)?, plan)?;
+        crate::batch::check(&p, plan)?;
+        for (i, j) in p.jobs.iter().enumerate() {
+            let kind = if matches!(j, crate::batch::Job::Search(_)) { "search" } else { "compare" };
+            println!("job {}: {} ({kind}) ok", i + 1, j.name());
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     let dir = match (&a.resume, &a.plan) {
         (Some(d), _) => d.clone(),
         (None, Some(plan)) => crate::batch::create(plan, Path::new("results"), a.out.as_deref())?,
