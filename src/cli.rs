@@ -978,7 +978,14 @@ fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
         println!("no runs under {}", a.dir.display());
     }
     for d in dirs {
-        let st: crate::ga::search::RunState = store::read_json(&d.join("state.json"))?;
+        let st: crate::ga::search::RunState = match store::read_json(&d.join("state.json")) {
+            Ok(st) => st,
+            Err(e) => {
+                // One damaged run must not hide the others.
+                eprintln!("warning: skipped {e}");
+                continue;
+            }
+        };
         let env = store::read_json::<serde_json::Value>(&d.join("run.json"))
             .ok()
             .and_then(|v| v["env"].as_str().map(String::from))

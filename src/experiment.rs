@@ -212,16 +212,18 @@ pub fn summarize_iterations(datasets: &[DatasetResult], iterations: usize) -> Ve
 }
 
 impl RunReport {
-    /// The per-dataset, per-iteration records as CSV rows (with a header).
+    /// The per-dataset, per-iteration records as CSV rows (with a header). A dataset that
+    /// diverged has a last row at the iteration it diverged, with only `diverged` set (its reason),
+    /// so every dataset appears even when it diverged at the first iteration.
     pub fn csv(&self) -> String {
         let mut s = String::from(
-            "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds\n",
+            "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds,diverged\n",
         );
         let opt = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x:?}"));
         for d in &self.datasets {
             for r in &d.record.iterations {
                 s.push_str(&format!(
-                    "{},{},{},{},{:?},{},{:?},{:?},{:?}\n",
+                    "{},{},{},{},{:?},{},{:?},{:?},{:?},\n",
                     d.dataset,
                     r.iteration,
                     opt(r.score),
@@ -232,6 +234,9 @@ impl RunReport {
                     r.predict_seconds,
                     r.eval_seconds
                 ));
+            }
+            if let Some(div) = &d.record.diverged {
+                s.push_str(&format!("{},{},,,,,,,,{}\n", d.dataset, div.iteration, div.reason));
             }
         }
         s

@@ -37,6 +37,8 @@ fn main() -> ExitCode {
 fn exit_code(e: &anyhow::Error) -> u8 {
     match e.downcast_ref::<bfqi_ga::Error>() {
         Some(bfqi_ga::Error::Failed(_)) => 1,
+        // A full disk is the run failing, not the user's input; the run resumes once there is room.
+        Some(bfqi_ga::Error::Io { err, .. }) if err.kind() == std::io::ErrorKind::StorageFull => 1,
         _ => 2,
     }
 }

@@ -219,3 +219,22 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
     let gen0 = std::fs::read_to_string(d.join("run/generations.jsonl")).unwrap();
     assert!(gen0.contains("\"fitness\":null"), "{gen0}");
 }
+
+#[test]
+fn diverged_datasets_have_rows_in_run_csv() {
+    let d = tmp("runcsv");
+    let o = bin()
+        .current_dir(&d)
+        .args(["run", "cartpole", "--learner", "mlp", "--learning-rate", "1e300", "--datasets", "2"])
+        .args(["--iterations", "2", "--episodes", "10", "--out", "out"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(d.join("out/run.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    for ds in ["0", "1"] {
+        let row =
+            rows.iter().find(|r| r.starts_with(&format!("{ds},"))).unwrap_or_else(|| panic!("no row of {ds}: {csv}"));
+        assert!(row.ends_with("non-finite training loss"), "{row}");
+    }
+}

@@ -161,3 +161,59 @@ fn reproduce_rederives_every_stored_field() {
     assert!(o.status.success(), "the untouched best.json reproduces");
     std::fs::remove_dir_all(d).unwrap();
 }
+
+#[test]
+fn a_full_disk_fails_the_run_and_a_later_resume_works() {
+    let d = tmp("enospc");
+    let mnt = d.join("small");
+    std::fs::create_dir_all(&mnt).unwrap();
+    let mounted = Command::new("mount").args(["-t", "tmpfs", "-o", "size=2m", "tmpfs"]).arg(&mnt).status();
+    if !mounted.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: cannot mount a small tmpfs here (needs root) to fill a disk");
+        return;
+    }
+    let result = std::panic::catch_unwind(|| {
+        // The reference: three generations in one go.
+        let whole = d.join("whole");
+        let args = ["--quick", "--population", "4", "--datasets", "2", "--episodes", "20", "--iterations", "2"];
+        let run = |dir: &Path, gens: &str| {
+            bin()
+                .args(["search", "cartpole"])
+                .args(args)
+                .args(["--seed", "8", "--quiet", "--generations", gens, "--out"])
+                .arg(dir)
+                .output()
+                .unwrap()
+        };
+        assert!(run(&whole, "3").status.success());
+        // Two generations on the small disk, then the disk fills up.
+        let small = mnt.join("run");
+        assert!(run(&small, "2").status.success());
+        let filler = mnt.join("filler");
+        let mut f = std::fs::File::create(&filler).unwrap();
+        let block = vec![0u8; 4096];
+        while std::io::Write::write_all(&mut f, &block).is_ok() {}
+        drop(f);
+        // Resuming on the full disk: the lock file is created but its owner cannot be written.
+        let o = bin().args(["search", "--resume"]).arg(&small).args(["--quiet"]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "a full disk fails the run: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains("No space left"), "{err}");
+        // Room again: a resume takes over what the full disk left (an empty lock) and
+        // ends where the uninterrupted run did.
+        std::fs::remove_file(&filler).unwrap();
+        let o =
+            bin().args(["search", "--resume"]).arg(&small).args(["--generations", "3", "--quiet"]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        assert!(err.contains("empty or unreadable lock, treated as stale"), "{err}");
+        assert_eq!(scores(&small), scores(&whole));
+        assert_eq!(read(&small.join("best.json")), read(&whole.join("best.json")));
+    });
+    let _ = Command::new("umount").arg(&mnt).status();
+    let _ = std::fs::remove_dir_all(&d);
+    if let Err(e) = result {
+        std::panic::resume_unwind(e);
+    }
+}

@@ -114,7 +114,7 @@ fn out_writes_json_and_csv() {
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds"
+        "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds,diverged"
     );
     assert_eq!(lines.count(), 4);
     let json: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();

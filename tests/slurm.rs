@@ -79,7 +79,7 @@ fn a_unit_that_always_fails_is_reported_with_its_log() {
     let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_DROP_ALWAYS", "0".to_string())];
     let o = search(&d.join("run"), &["--executor", "slurm", "--slurm-retries", "1"], &env);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(o.status.code(), Some(1), "a run that failed, not bad input: {err}");
     assert!(err.contains("still missing after 2 submission(s)") && err.contains("log "), "{err}");
 }
 

@@ -154,15 +154,14 @@ impl Executor for Slurm {
                 .map(|(id, log)| format!("{id} (log {})", log.display()))
                 .collect();
             let said = if said.is_empty() { String::new() } else { format!("; sbatch said: {said}") };
-            return Err(Error::File {
-                path: self.run_dir.clone(),
-                message: format!(
-                    "{} unit(s) still missing after {} submission(s): {}{said}",
-                    missing.len(),
-                    self.retries + 1,
-                    shown.join(", ")
-                ),
-            });
+            // The run failed (exit 1), it is not bad input: resumable once the cause is fixed.
+            return Err(Error::Failed(format!(
+                "{}: {} unit(s) still missing after {} submission(s): {}{said}",
+                self.run_dir.display(),
+                missing.len(),
+                self.retries + 1,
+                shown.join(", ")
+            )));
         }
         Ok(())
     }
