@@ -368,6 +368,22 @@ fn unit_path(dir: &Path, id: &str) -> PathBuf {
     dir.join("units").join(format!("{id}.json"))
 }
 
+/// Whether a unit is stored whole: a file that does not parse (truncated by a kill or a full
+/// disk, or damaged) is computed again, with a warning.
+fn unit_done(dir: &Path, id: &str) -> bool {
+    let p = unit_path(dir, id);
+    if !p.is_file() {
+        return false;
+    }
+    match read_json::<DatasetResult>(&p) {
+        Ok(_) => true,
+        Err(e) => {
+            eprintln!("warning: {e}; it will be computed again");
+            false
+        }
+    }
+}
+
 /// Evaluates one unit by id and stores it (also the Slurm worker's entry point).
 pub fn run_unit(dir: &Path, cfg: &CompareConfig, id: &str) -> Result<()> {
     let u = cfg
@@ -392,8 +408,11 @@ pub fn run(
     let started = std::time::Instant::now();
     let cfg = load(dir)?;
     let _lock = RunLock::acquire(dir)?;
-    let ids: Vec<String> =
-        cfg.units().iter().map(|u| cfg.unit_id(u)).filter(|id| !unit_path(dir, id).is_file()).collect();
+    // What a kill can leave: a deleted units/ is made again, temporary files are removed.
+    store::create_dir(&dir.join("units"))?;
+    store::remove_temporaries(dir)?;
+    store::remove_temporaries(&dir.join("units"))?;
+    let ids: Vec<String> = cfg.units().iter().map(|u| cfg.unit_id(u)).filter(|id| !unit_done(dir, id)).collect();
     let progress = Progress::new("comparison", 1, quiet);
     progress.line(&format!("compare {} → {} ({} units to run)", cfg.env.env().name(), dir.display(), ids.len()));
     progress.start_stage("units", ids.len() as u64);
@@ -421,4 +440,19 @@ pub fn collect(dir: &Path, cfg: &CompareConfig) -> Result<Vec<UnitRecord>> {
             Ok(UnitRecord { unit: u, result: read_json(&p)? })
         })
         .collect()
+}
+
+#[cfg(test)]
+mod resume_tests {
+    use super::*;
+
+    #[test]
+    fn a_truncated_unit_is_not_done() {
+        let dir = std::env::temp_dir().join(format!("bfqi-compare-unit-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("units")).unwrap();
+        assert!(!unit_done(&dir, "u"));
+        std::fs::write(unit_path(&dir, "u"), "{\"dataset\": 0, \"transi").unwrap();
+        assert!(!unit_done(&dir, "u"));
+        std::fs::remove_dir_all(dir).unwrap();
+    }
 }
