@@ -135,7 +135,24 @@ pub fn run_dataset_saving(
 ) -> Result<DatasetResult> {
     let env = cfg.env.env();
     let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, "compare", index))?;
-    let enc = Encoded::new(&data, env.actions(), cfg.actions)?;
+    let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
+        crate::error::Error::Data(m) => {
+            crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))
+        }
+        other => other,
+    })?;
+    if matches!(cfg.learner, LearnerConfig::Mlp(_)) {
+        // Each network holds out a validation tail: it needs two rows (validation_fraction ≤ 0.5).
+        if let Some(rows) = (0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).find(|&r| r < 2) {
+            return Err(crate::error::Error::invalid(
+                "episodes",
+                cfg.episodes,
+                format!(
+                    "gives dataset {index} only {rows} transition(s) for a network, which needs 2; use more episodes"
+                ),
+            ));
+        }
+    }
     let fit_seed = rng::derive(cfg.seed, "fit", &[index as u64]);
     let eval_seed = eval_seed(cfg.seed, index);
     let (record, q) =

@@ -238,3 +238,26 @@ fn diverged_datasets_have_rows_in_run_csv() {
         assert!(row.ends_with("non-finite training loss"), "{row}");
     }
 }
+
+#[test]
+fn a_dataset_too_small_for_the_network_names_the_episode_count() {
+    let d = tmp("tiny-data");
+    refused(
+        &d,
+        &[
+            "search",
+            "cartpole",
+            "--quick",
+            "--episodes",
+            "1",
+            "--population",
+            "2",
+            "--generations",
+            "1",
+            "--out",
+            "run",
+            "--quiet",
+        ],
+        &["invalid search.episodes = 1: too few for search dataset"],
+    );
+}

@@ -195,7 +195,30 @@ impl Evaluator {
         let env = self.spec.env.env();
         let s = &self.spec.search;
         let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, self.role.name(), d))?;
-        let enc = Encoded::new(&data, env.actions(), s.actions)?;
+        let enc = Encoded::new(&data, env.actions(), s.actions).map_err(|e| match e {
+            // An action missing from a tiny dataset is the episode count's doing.
+            Error::Data(m) => Error::invalid(
+                "search.episodes",
+                s.episodes,
+                format!("too few for {} dataset {d}: {m}", self.role.name()),
+            ),
+            other => other,
+        })?;
+        // Each network holds out a validation tail: it needs two rows (validation_fraction ≤ 0.5).
+        for j in 0..enc.n_models() {
+            let rows = enc.model_rows(j).1.len();
+            if rows < 2 {
+                return Err(Error::invalid(
+                    "search.episodes",
+                    s.episodes,
+                    format!(
+                        "gives {} dataset {d} only {rows} transition(s) for a network, which needs 2 to hold out a \
+                         validation row; use more episodes",
+                        self.role.name()
+                    ),
+                ));
+            }
+        }
         let x = Arc::new((data, enc));
         self.data.lock().expect("dataset cache").insert(d, x.clone());
         Ok(x)
