@@ -121,7 +121,7 @@ pub fn collect(env: &dyn Env, episodes: usize, seed: u64) -> Result<Dataset> {
 }
 
 fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
-    let mut rng = stream(seed, "episode", &[e as u64]);
+    let mut rng = stream(seed, rng::purpose::EPISODE, &[e as u64]);
     let (sd, od) = (env.state_dim(), env.obs_dim());
     let mut s = [0.0; MAX_STATE];
     let mut next = [0.0; MAX_STATE];
@@ -151,7 +151,7 @@ fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
 /// The seed of dataset `index` of a role (`"search"` or `"compare"`) under a master seed. The roles'
 /// streams are disjoint, so a search never tunes on the datasets a comparison reports.
 pub fn dataset_seed(master: u64, role: &str, index: usize) -> u64 {
-    rng::derive(master, &format!("dataset/{role}"), &[index as u64])
+    rng::derive(master, &rng::purpose::dataset(role), &[index as u64])
 }
 
 #[cfg(test)]

@@ -20,7 +20,7 @@ pub struct Score {
 
 /// The seed of the evaluation episodes that go with dataset `index` under a master seed.
 pub fn eval_seed(master: u64, index: usize) -> u64 {
-    rng::derive(master, "eval", &[index as u64])
+    rng::derive(master, rng::purpose::EVAL, &[index as u64])
 }
 
 /// Runs `policy` (observation → index into [`Env::actions`]) on the evaluation episodes of `env`.
@@ -28,7 +28,7 @@ pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_see
     let proto = env.eval();
     let (mut total_score, mut total_steps) = (0.0, 0.0);
     for e in 0..proto.episodes {
-        let mut rng = stream(eval_seed, "episode", &[e as u64]);
+        let mut rng = stream(eval_seed, rng::purpose::EPISODE, &[e as u64]);
         let mut s = [0.0; MAX_STATE];
         draw_box(&proto.start, &mut rng, &mut s[..env.state_dim()]);
         let ep = episode(env, policy, &mut rng, &s[..env.state_dim()], proto.steps, |_| {});

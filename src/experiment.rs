@@ -153,7 +153,7 @@ pub fn run_dataset_saving(
             ));
         }
     }
-    let fit_seed = rng::derive(cfg.seed, "fit", &[index as u64]);
+    let fit_seed = rng::derive(cfg.seed, rng::purpose::FIT, &[index as u64]);
     let eval_seed = eval_seed(cfg.seed, index);
     let (record, q) =
         model::run_keeping(env, &data, &enc, &cfg.learner, cfg.settings(), fit_seed, eval_seed, progress)?;

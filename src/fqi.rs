@@ -236,7 +236,7 @@ impl<'a, L: Learner> Fqi<'a, L> {
         }
 
         let t0 = Instant::now();
-        let seed = rng::derive(self.fit_seed, "member", &[k as u64]);
+        let seed = rng::derive(self.fit_seed, rng::purpose::MEMBER, &[k as u64]);
         // The member's predictions on the training rows come with the fit (trees know each row's
         // leaf), so they count as fit time.
         // Q(x′, ·) of the member comes with it too (a tree gives a next state that is also a

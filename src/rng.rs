@@ -88,6 +88,51 @@ pub fn int_in(rng: &mut Rng, lo: i64, hi: i64) -> i64 {
     lo + below(rng, (hi - lo) as u64 + 1) as i64
 }
 
+/// The purpose of every random stream, named once: what each draws and from which indices. The
+/// README's "Determinism" section lists the same. Changing a name changes every result it seeds.
+pub mod purpose {
+    /// Dataset `d` of a role (`dataset/search`, `dataset/compare`, `dataset/validation`): `[d]`.
+    pub fn dataset(role: &str) -> String {
+        format!("dataset/{role}")
+    }
+    /// Episode `e` of a dataset, or of an evaluation (its start state and noise): `[e]`.
+    pub const EPISODE: &str = "episode";
+    /// A run's or comparison's learner seed for dataset `i`: `[i]`.
+    pub const FIT: &str = "fit";
+    /// A run's or comparison's evaluation episodes for dataset `i`: `[i]`.
+    pub const EVAL: &str = "eval";
+    /// A search unit's learner seed: `[activation code, δ_min bits, patience, d]`.
+    pub const INIT: &str = "init";
+    /// The same for a validation unit.
+    pub const INIT_VALIDATION: &str = "init/validation";
+    /// A search or validation unit's evaluation episodes (`eval/search`, `eval/validation`): `[d]`.
+    pub fn eval_role(role: &str) -> String {
+        format!("eval/{role}")
+    }
+    /// FQI member `k` (iteration k), from the learner seed: `[k]`.
+    pub const MEMBER: &str = "member";
+    /// The model of action `j` of a `per_action` member, from the member's seed: `[j]`.
+    pub const ACTION: &str = "action";
+    /// Extra-Trees tree `t`, from the model's seed: `[t]`.
+    pub const TREE: &str = "tree";
+    /// A network's initial weights, from the model's seed: `[]`.
+    pub const MLP_INIT: &str = "mlp/init";
+    /// A network's mini-batch shuffles, from the model's seed: `[]`.
+    pub const MLP_SHUFFLE: &str = "mlp/shuffle";
+    /// The GA's own seed for an environment (`ga/cartpole`, …): `[]`.
+    pub fn ga(env: &str) -> String {
+        format!("ga/{env}")
+    }
+    /// Individual `i` of the initial population, from the GA seed: `[i]`.
+    pub const GA_INIT: &str = "ga/init";
+    /// Child `c` of generation `g` (parents, crossover, mutation), from the GA seed: `[g, c]`.
+    pub const GA_BREED: &str = "ga/breed";
+    /// Validation of an environment's settings (a few random steps), from seed 0: `[e]`.
+    pub const ENV_CHECK: &str = "env/check";
+    /// Whether an environment's dataset actions are discrete, from seed 0: `[]`.
+    pub const ENV_CHECK_ACTIONS: &str = "env/check-actions";
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,7 +10,7 @@ use crate::env::{EnvConfig, MAX_STATE, draw_box};
 use crate::eval::{Episode, episode};
 use crate::learn::actions::argmax;
 use crate::report::stats::{Summary, summarize};
-use crate::rng::stream;
+use crate::rng::{purpose, stream};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -92,7 +92,7 @@ fn one(
 ) -> (Episode, Option<Trajectory>) {
     let env = env_cfg.env();
     let (sd, na) = (env.state_dim(), env.actions().len());
-    let mut rng = stream(eval_seed, "episode", &[e as u64]);
+    let mut rng = stream(eval_seed, purpose::EPISODE, &[e as u64]);
     let mut s = [0.0; MAX_STATE];
     start.draw(env_cfg, &mut rng, &mut s[..sd]);
     let mut qv = vec![0.0; na];

@@ -74,7 +74,8 @@ fn timed_run(
     settings: FqiSettings,
 ) -> Result<(RunRecord, f64, f64)> {
     let t = Instant::now();
-    let rec = Fqi::new(env, d, enc, p, settings, rng::derive(1, "fit", &[0]), eval_seed(1, 0)).run(|_| {})?;
+    let rec =
+        Fqi::new(env, d, enc, p, settings, rng::derive(1, rng::purpose::FIT, &[0]), eval_seed(1, 0)).run(|_| {})?;
     let seconds = t.elapsed().as_secs_f64();
     let total = rec.iterations.iter().map(fit_predict_s).sum();
     Ok((rec, seconds, total))

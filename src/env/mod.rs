@@ -193,7 +193,7 @@ impl EnvConfig {
         let env = self.env();
         let sd = env.state_dim();
         for e in 0..3u64 {
-            let mut rng = crate::rng::stream(0, "env/check", &[e]);
+            let mut rng = crate::rng::stream(0, crate::rng::purpose::ENV_CHECK, &[e]);
             let (mut s, mut next) = ([0.0; MAX_STATE], [0.0; MAX_STATE]);
             env.dataset_start(&mut rng, &mut s[..sd]);
             for _ in 0..env.horizon().min(100) {
@@ -220,7 +220,7 @@ impl EnvConfig {
     /// encoding needs it; the pendulum's random policy draws continuous torques).
     pub fn discrete_dataset_actions(&self) -> bool {
         let env = self.env();
-        let mut rng = crate::rng::stream(0, "env/check-actions", &[]);
+        let mut rng = crate::rng::stream(0, crate::rng::purpose::ENV_CHECK_ACTIONS, &[]);
         (0..64).all(|_| env.actions().contains(&env.dataset_action(&mut rng)))
     }
 

@@ -60,7 +60,7 @@ pub fn initial_population(seed: u64, ranges: &GeneRanges, size: usize) -> Vec<Ch
     let bounds = ranges.bounds();
     (0..size)
         .map(|i| {
-            let mut r = stream(seed, "ga/init", &[i as u64]);
+            let mut r = stream(seed, crate::rng::purpose::GA_INIT, &[i as u64]);
             let mut c = [0; GENES];
             for (g, b) in c.iter_mut().zip(bounds) {
                 *g = draw_gene(&mut r, b);
@@ -104,7 +104,7 @@ pub fn next_generation(
     let mut births = Vec::new();
     let mut child = 0u64;
     while next.len() < ga.population {
-        let mut r = stream(seed, "ga/breed", &[generation as u64, child]);
+        let mut r = stream(seed, crate::rng::purpose::GA_BREED, &[generation as u64, child]);
         child += 1;
         let p1 = pool[rng::below(&mut r, pool.len() as u64) as usize];
         let p2 = pool[rng::below(&mut r, pool.len() as u64) as usize];

@@ -738,7 +738,7 @@ impl Runner<'_> {
 /// environment, so searches of different environments with one master seed draw different
 /// populations.
 pub fn ga_seed(spec: &Spec) -> u64 {
-    crate::rng::derive(spec.seed, &format!("ga/{}", spec.env.env().name()), &[])
+    crate::rng::derive(spec.seed, &crate::rng::purpose::ga(spec.env.env().name()), &[])
 }
 
 /// Runs (or resumes) the search in `dir`. Unit results already stored are reused. A finished

@@ -142,8 +142,8 @@ impl Role {
     }
     fn init_purpose(self) -> &'static str {
         match self {
-            Role::Search => "init",
-            Role::Validation => "init/validation",
+            Role::Search => crate::rng::purpose::INIT,
+            Role::Validation => crate::rng::purpose::INIT_VALIDATION,
         }
     }
     fn folder(self) -> &'static str {
@@ -246,7 +246,7 @@ impl Evaluator {
     /// `(seed, "eval/search", [d])` (`init/validation` and `eval/validation` for validation).
     pub fn seeds(&self, s: &Decoded, d: usize) -> (u64, u64) {
         let idx = [activation_code(s.activation), s.delta_min.to_bits(), s.patience as u64, d as u64];
-        let eval = format!("eval/{}", self.role.name());
+        let eval = crate::rng::purpose::eval_role(self.role.name());
         (rng::derive(self.spec.seed, self.role.init_purpose(), &idx), rng::derive(self.spec.seed, &eval, &[d as u64]))
     }
 

@@ -189,7 +189,7 @@ impl Encoded {
                         let ys: Vec<f64> = self.train_index[lo..hi].iter().map(|&i| y[i]).collect();
                         let (mut buf, mut next_buf) = (vec![0.0; hi - lo], vec![0.0; n]);
                         let x = &self.train[lo * self.obs_dim..hi * self.obs_dim];
-                        let seed_j = rng::derive(seed, "action", &[j as u64]);
+                        let seed_j = rng::derive(seed, rng::purpose::ACTION, &[j as u64]);
                         let next = NextStates { states, actions: None, same: &self.twins[j * n..(j + 1) * n] };
                         let (m, fi, s) = learner.fit_predict_next(
                             Rows::new(x, self.obs_dim)?,

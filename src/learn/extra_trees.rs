@@ -150,7 +150,7 @@ impl ExtraTreesParams {
                 let m = if data.idx.is_empty() { 0 } else { data.n };
                 let mut routes = Routes { leaf_of: vec![0; m], value: Vec::new(), fork: Vec::new() };
                 let tree = with_workspace(data.d, data.n, |ws| {
-                    build_tree(self, &data, ws, rng::stream(seed, "tree", &[t as u64]), &mut routes)
+                    build_tree(self, &data, ws, rng::stream(seed, rng::purpose::TREE, &[t as u64]), &mut routes)
                 });
                 (tree, routes)
             })

@@ -148,7 +148,7 @@ impl MlpParams {
         let mut work = Work::new(&shape);
         let mut opt = RmsProp::new(shape.n_params(), self.learning_rate, self.rho, self.epsilon);
         let mut rule = EarlyStopping::new(self.delta_min, self.patience);
-        let mut rng = stream(seed, "mlp/shuffle", &[]);
+        let mut rng = stream(seed, crate::rng::purpose::MLP_SHUFFLE, &[]);
         let mut perm = vec![0u32; split];
         let mut losses = Vec::with_capacity(self.max_epochs.min(10_000));
         let mut info = FitInfo { epochs: 0, stop: StopReason::MaxEpochs, train_loss: None, val_loss: None };
@@ -264,7 +264,7 @@ fn split_point(n: usize, validation_fraction: f64) -> usize {
 /// Glorot-uniform weights (each in ±√(6 / (fan_in + fan_out)), drawn layer by layer in parameter
 /// order from the stream `(seed, "mlp/init")`) and zero biases.
 pub fn glorot_init(shape: &Shape, seed: u64) -> Vec<f32> {
-    let mut rng = stream(seed, "mlp/init", &[]);
+    let mut rng = stream(seed, crate::rng::purpose::MLP_INIT, &[]);
     let mut p = vec![0.0; shape.n_params()];
     let w = shape.widths();
     for l in 0..shape.n_layers() {
