@@ -266,22 +266,8 @@ pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<Pa
     let text = store::read_input(plan_path)?;
     let plan = Plan::parse(&text, plan_path)?;
     check(&plan, plan_path)?;
-    let dir = match out {
-        Some(d) => {
-            if d.join("plan.json").exists() {
-                return Err(Error::File {
-                    path: d.to_path_buf(),
-                    message: format!("already holds a batch: use --resume {}", d.display()),
-                });
-            }
-            store::create_dir(d)?;
-            d.to_path_buf()
-        }
-        None => {
-            let stem = plan_path.file_stem().map_or("batch".into(), |s| s.to_string_lossy().into_owned());
-            store::new_run_dir(&results.join("batches"), &format!("{stem}-"))?
-        }
-    };
+    let stem = plan_path.file_stem().map_or("batch".into(), |s| s.to_string_lossy().into_owned());
+    let dir = store::claim_run_dir(out, "plan.json", "a batch", &results.join("batches"), &format!("{stem}-"))?;
     write_json(&dir.join("plan.json"), &plan)?;
     let states: Vec<JobState> = plan
         .jobs

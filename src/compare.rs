@@ -293,19 +293,7 @@ pub fn prepare(
 ) -> Result<PathBuf> {
     let (cfg, info) = resolve(spec_name, tuned, analysis, learner, o)?;
     let env = cfg.env.env().name();
-    let dir = match out {
-        Some(d) => {
-            if d.join("compare.json").exists() {
-                return Err(Error::File {
-                    path: d.to_path_buf(),
-                    message: format!("already holds a comparison: use --resume {}", d.display()),
-                });
-            }
-            store::create_dir(d)?;
-            d.to_path_buf()
-        }
-        None => store::new_run_dir(&results.join(env), "compare-")?,
-    };
+    let dir = store::claim_run_dir(out, "compare.json", "a comparison", &results.join(env), "compare-")?;
     create(&dir, &cfg, &info)?;
     Ok(dir)
 }

@@ -14,7 +14,7 @@ use crate::env::Env;
 use crate::error::Result;
 use crate::eval::{Score, evaluate};
 use crate::learn::actions::{Encoded, QModel, argmax};
-use crate::learn::{FitInfo, Learner, LearnerConfig, StopReason};
+use crate::learn::{FitInfo, Learner, StopReason};
 use crate::rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -339,25 +339,6 @@ const PARALLEL_MEMBERS: usize = 4;
 fn add(acc: &mut [f64], x: &[f64]) {
     for (a, b) in acc.iter_mut().zip(x) {
         *a += b;
-    }
-}
-
-/// Runs FQI or B-FQI with the learner a [`LearnerConfig`] names, on one dataset already laid out for
-/// its action encoding. This is the unit of work of `run`, `compare` and the GA's fitness.
-#[allow(clippy::too_many_arguments)]
-pub fn run_with(
-    env: &dyn Env,
-    data: &Dataset,
-    enc: &Encoded,
-    learner: &LearnerConfig,
-    settings: FqiSettings,
-    fit_seed: u64,
-    eval_seed: u64,
-    progress: impl FnMut(&IterationRecord),
-) -> Result<RunRecord> {
-    match learner {
-        LearnerConfig::ExtraTrees(p) => Fqi::new(env, data, enc, p, settings, fit_seed, eval_seed).run(progress),
-        LearnerConfig::Mlp(p) => Fqi::new(env, data, enc, p, settings, fit_seed, eval_seed).run(progress),
     }
 }
 

@@ -104,8 +104,9 @@ impl Model {
     }
 }
 
-/// Runs FQI or B-FQI as [`crate::fqi::run_with`] does and also returns the last iteration's
-/// Q-function (`None` when the run diverged: there is no Q-function worth keeping).
+/// Runs FQI or B-FQI with the learner a [`LearnerConfig`] names, on one dataset laid out for its
+/// action encoding (the unit of work of `run` and `compare`), and returns the last iteration's
+/// Q-function too (`None` when the run diverged: there is no Q-function worth keeping).
 #[allow(clippy::too_many_arguments)]
 pub fn run_keeping(
     env: &dyn Env,

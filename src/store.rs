@@ -127,6 +127,24 @@ impl<'de> serde::de::Visitor<'de> for StrictVisitor {
     }
 }
 
+/// The directory a new run writes into: `out` (created; refused if it already holds a run, i.e.
+/// has `marker`, naming the `--resume` to use instead), or a fresh `<parent>/<prefix><timestamp>`.
+pub fn claim_run_dir(out: Option<&Path>, marker: &str, what: &str, parent: &Path, prefix: &str) -> Result<PathBuf> {
+    match out {
+        Some(d) => {
+            if d.join(marker).exists() {
+                return Err(Error::File {
+                    path: d.to_path_buf(),
+                    message: format!("already holds {what}: use --resume {}", d.display()),
+                });
+            }
+            create_dir(d)?;
+            Ok(d.to_path_buf())
+        }
+        None => new_run_dir(parent, prefix),
+    }
+}
+
 /// Removes the temporary files that interrupted atomic writes left in `dir` (`.<name>.tmp<pid>`).
 pub fn remove_temporaries(dir: &Path) -> Result<()> {
     let Ok(entries) = fs::read_dir(dir) else { return Ok(()) };

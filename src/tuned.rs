@@ -106,6 +106,17 @@ impl TunedConfig {
         Ok(())
     }
 
+    /// Refuses a tuned config of another environment than `env`, naming the file it came from.
+    pub fn check_env(&self, env: &str, origin: &Path) -> Result<()> {
+        if self.env == env {
+            return Ok(());
+        }
+        Err(Error::File {
+            path: origin.to_path_buf(),
+            message: format!("is a tuned config for {}, not {env}", self.env),
+        })
+    }
+
     /// Reads and validates a tuned config; errors name the file and the field.
     pub fn load(path: &Path) -> Result<TunedConfig> {
         let text = crate::store::read_input(path)?;

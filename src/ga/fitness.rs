@@ -36,13 +36,7 @@ pub fn setting_of(t: &TunedConfig) -> Decoded {
 
 /// Scores tuned config `t` (read from `origin`) under `spec`'s fitness.
 pub fn score(spec: &Spec, t: &TunedConfig, origin: &Path) -> Result<Scored> {
-    let env = spec.env.env().name();
-    if t.env != env {
-        return Err(Error::File {
-            path: origin.to_path_buf(),
-            message: format!("is a tuned config for {}, not {env}", t.env),
-        });
-    }
+    t.check_env(spec.env.env().name(), origin)?;
     let setting = setting_of(t);
     let ev = Evaluator::new(spec.clone(), Path::new("."));
     let s = &spec.search;
@@ -92,13 +86,7 @@ fn differences(spec: &Spec, t: &TunedConfig, setting: &Decoded) -> Vec<String> {
 /// Trains tuned config `t` on search dataset `d` exactly as a search under `spec` would (its
 /// unit), keeping the Q-function: what `rollout --tuned` looks at.
 pub fn train(spec: &Spec, t: &TunedConfig, origin: &Path, d: usize) -> Result<(UnitResult, crate::model::Model)> {
-    let env = spec.env.env().name();
-    if t.env != env {
-        return Err(Error::File {
-            path: origin.to_path_buf(),
-            message: format!("is a tuned config for {}, not {env}", t.env),
-        });
-    }
+    t.check_env(spec.env.env().name(), origin)?;
     if d >= spec.search.datasets {
         return Err(Error::invalid("dataset", d, format!("must be below search.datasets = {}", spec.search.datasets)));
     }

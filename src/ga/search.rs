@@ -270,19 +270,7 @@ pub fn prepare(
     results: &Path,
 ) -> Result<PathBuf> {
     let (spec, info) = resolve(spec_name, presets, o)?;
-    let dir = match out {
-        Some(d) => {
-            if d.join("spec.json").exists() {
-                return Err(Error::File {
-                    path: d.to_path_buf(),
-                    message: format!("already holds a run: use --resume {}", d.display()),
-                });
-            }
-            store::create_dir(d)?;
-            d.to_path_buf()
-        }
-        None => store::new_run_dir(&results.join(&info.env), "search-")?,
-    };
+    let dir = store::claim_run_dir(out, "spec.json", "a run", &results.join(&info.env), "search-")?;
     create(&dir, &spec, &info)?;
     Ok(dir)
 }
@@ -371,10 +359,8 @@ fn seed_chromosomes(names: &[String], env: &str, genes: &GeneRanges) -> Result<V
         .iter()
         .map(|name| {
             let (t, from) = TunedConfig::resolve(name, env)?;
+            t.check_env(env, &from)?;
             let refuse = |message: String| Error::File { path: from.clone(), message };
-            if t.env != env {
-                return Err(refuse(format!("is a tuned config for {}, not {env} (--seed-config)", t.env)));
-            }
             let setting = Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience };
             super::chromosome::encode(&setting, genes).ok_or_else(|| {
                 refuse(format!(

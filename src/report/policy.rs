@@ -9,7 +9,7 @@ use crate::model::{Model, ModelInfo};
 use crate::rollout::{self, Robustness, Start, Trajectory};
 use crate::store;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// What to roll out.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,15 +109,4 @@ pub fn write(dir: &Path, model: &Model, model_label: &str, req: &Request) -> Res
     };
     store::write_json(&dir.join("rollout.json"), &summary)?;
     Ok(summary)
-}
-
-/// The files a rollout of `episodes` drawn episodes writes (for messages and tests).
-pub fn files(dir: &Path, drawn: usize) -> Vec<PathBuf> {
-    let mut v = vec![dir.join("trajectory.csv"), dir.join("rollout.json")];
-    for e in 0..drawn {
-        for ext in ["png", "svg", "gif"] {
-            v.push(dir.join(format!("episode-{e}.{ext}")));
-        }
-    }
-    v
 }
