@@ -1,19 +1,11 @@
 //! Bad input gets one line naming the file and the full field path, exit 2, and leaves nothing
 //! behind: never a panic, never an abort on a huge allocation.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::{bin, empty_dir};
+
+use std::path::Path;
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-bad-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Runs `args` in `dir`; asserts exit 2 and a one-line message containing every one of `want`.
 fn refused(dir: &Path, args: &[&str], want: &[&str]) -> String {
@@ -45,7 +37,7 @@ fn nothing_created(dir: &Path, inputs: &[&str]) {
 
 #[test]
 fn malformed_spec_layers_name_their_file_and_field() {
-    let d = tmp("layers");
+    let d = empty_dir("bad", "layers");
     let s = write(&d, "s.json", r#"{"search": 5}"#);
     refused(&d, &["search", &s, "--generations", "1"], &["s.json: field search: invalid type: integer `5`"]);
     let s2 = write(&d, "s2.json", r#"{"search": {"stop": "x"}}"#);
@@ -62,7 +54,7 @@ fn malformed_spec_layers_name_their_file_and_field() {
 
 #[test]
 fn type_errors_inside_env_and_learners_keep_the_whole_path() {
-    let d = tmp("paths");
+    let d = empty_dir("bad", "paths");
     let full = |patch: &str| patched("cartpole", patch);
     let s = write(&d, "env.json", &full(r#"{"env": {"g": "9.8"}}"#));
     refused(&d, &["search", &s], &["env.json: field env.g: invalid type: string \"9.8\", expected f64"]);
@@ -76,7 +68,7 @@ fn type_errors_inside_env_and_learners_keep_the_whole_path() {
 
 #[test]
 fn huge_sizes_are_refused_with_their_range_before_anything_is_allocated() {
-    let d = tmp("huge");
+    let d = empty_dir("bad", "huge");
     let big = "1000000000000";
     refused(
         &d,
@@ -106,7 +98,7 @@ fn patched(env: &str, patch: &str) -> String {
 
 #[test]
 fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
-    let d = tmp("extreme");
+    let d = empty_dir("bad", "extreme");
     let s = write(&d, "tau.json", &patched("cartpole", r#"{"env": {"tau": 1e308}}"#));
     let err = refused(&d, &["run", &s], &["tau.json: invalid env = cartpole settings", "non-finite"]);
     assert!(!err.contains("00000000000000000000"), "a 300-digit number: {err}");
@@ -124,7 +116,7 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
 
 #[test]
 fn a_best_json_off_its_gene_grid_is_refused_not_decoded() {
-    let d = tmp("grid");
+    let d = empty_dir("bad", "grid");
     let best = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole/best.json");
     let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(best).unwrap()).unwrap();
     v["chromosome"] = serde_json::json!([9, 9, 9, 9, 9]);
@@ -148,7 +140,7 @@ fn merge(base: &mut serde_json::Value, patch: &serde_json::Value) {
 
 #[test]
 fn inputs_that_are_not_regular_files_or_repeat_a_key_are_refused() {
-    let d = tmp("kinds");
+    let d = empty_dir("bad", "kinds");
     let dup = patched("cartpole", "{}").replacen("{", r#"{"seed": 1, "#, 1);
     let s = write(&d, "dup.json", &dup);
     refused(&d, &["search", &s], &["dup.json: duplicate key `seed`"]);
@@ -180,7 +172,7 @@ fn inputs_that_are_not_regular_files_or_repeat_a_key_are_refused() {
 
 #[test]
 fn flags_and_every_job_of_a_plan_are_checked_before_anything_is_created() {
-    let d = tmp("before");
+    let d = empty_dir("bad", "before");
     for h in ["0", "NaN", "inf"] {
         refused(&d, &["search", "cartpole", "--quick", "--out", "run", "--max-hours", h], &["invalid --max-hours"]);
     }
@@ -204,7 +196,7 @@ fn flags_and_every_job_of_a_plan_are_checked_before_anything_is_created() {
 
 #[test]
 fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
-    let d = tmp("diverged");
+    let d = empty_dir("bad", "diverged");
     let s = write(&d, "lr.json", &patched("cartpole", r#"{"search": {"network": {"learning_rate": 1e300}}}"#));
     let o = bin()
         .current_dir(&d)
@@ -222,7 +214,7 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
 
 #[test]
 fn diverged_datasets_have_rows_in_run_csv() {
-    let d = tmp("runcsv");
+    let d = empty_dir("bad", "runcsv");
     let o = bin()
         .current_dir(&d)
         .args(["run", "cartpole", "--learner", "mlp", "--learning-rate", "1e300", "--datasets", "2"])
@@ -241,7 +233,7 @@ fn diverged_datasets_have_rows_in_run_csv() {
 
 #[test]
 fn a_dataset_too_small_for_the_network_names_the_episode_count() {
-    let d = tmp("tiny-data");
+    let d = empty_dir("bad", "tiny-data");
     refused(
         &d,
         &[

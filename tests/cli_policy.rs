@@ -1,19 +1,12 @@
 //! Looking at and reusing what was learned: `run --save-model`, `rollout`, `evaluate`, `fitness`
 //! and `search --seed-config`, end to end.
 
+mod common;
+use common::{bin, fresh};
+
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-policy-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
+use std::path::Path;
+use std::process::Output;
 
 fn ok(o: &Output) -> String {
     assert!(o.status.success(), "exit {:?}: {}", o.status.code(), String::from_utf8_lossy(&o.stderr));
@@ -42,7 +35,7 @@ fn gif_frames(p: &Path) -> usize {
 
 #[test]
 fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
-    let (m, r) = (tmp("models"), tmp("rollout"));
+    let (m, r) = (fresh("policy", "models"), fresh("policy", "rollout"));
     let out = ok(&bin()
         .args(["run", "cartpole", "--learner", "et", "--trees", "3", "--iterations", "3", "--episodes", "20"])
         .args(["--datasets", "1", "--seed", "4", "--json", "--save-model", m.to_str().unwrap()])
@@ -111,7 +104,7 @@ fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
 
 #[test]
 fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generation_0() {
-    let dir = tmp("seeded");
+    let dir = fresh("policy", "seeded");
     let tiny = ["--quick", "--episodes", "25", "--datasets", "2", "--iterations", "2", "--population", "4"];
     ok(&bin()
         .args(["search", "cartpole", "--out", dir.to_str().unwrap(), "--seed-config", "thesis"])
@@ -143,7 +136,7 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
     assert!(text.contains("dataset  1") && text.contains("fitness"), "{text}");
 
     // rollout --tuned trains the unit the search ran and replays its evaluation episode.
-    let r = tmp("tuned-rollout");
+    let r = fresh("policy", "tuned-rollout");
     let stdout = ok(&bin()
         .args(["rollout", "--tuned", best.to_str().unwrap(), "--dataset", "1", "--draw", "0"])
         .args(["--out", r.to_str().unwrap(), "--save-model", r.join("new/q.model").to_str().unwrap()])
@@ -168,7 +161,7 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
     off["network"]["delta_min"] = serde_json::json!(0.123);
     let off_path = r.join("off.json");
     std::fs::write(&off_path, off.to_string()).unwrap();
-    let never = tmp("never");
+    let never = fresh("policy", "never");
     let o = bin()
         .args(["search", "cartpole", "--out", never.to_str().unwrap(), "--seed-config", off_path.to_str().unwrap()])
         .args(tiny)
@@ -193,7 +186,7 @@ fn committed_rollouts_replay_bit_for_bit_from_their_models() {
         if !model.is_file() {
             continue;
         }
-        let out = tmp(&format!("replay-{}", dir.file_name().unwrap().to_string_lossy()));
+        let out = fresh("policy", &format!("replay-{}", dir.file_name().unwrap().to_string_lossy()));
         ok(&bin()
             .args(["rollout", model.to_str().unwrap(), "--draw", "0", "--out", out.to_str().unwrap()])
             .output()

@@ -1,19 +1,11 @@
 //! `--resume` verifies what it reads, and `reproduce` re-derives every stored field.
 
+mod common;
+use common::{bin, empty_dir};
+
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-resume-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn read(p: &Path) -> String {
     std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
@@ -58,7 +50,7 @@ fn scores(dir: &Path) -> Vec<Value> {
 
 #[test]
 fn damaged_directories_resume_to_the_uninterrupted_result() {
-    let d = tmp("damaged");
+    let d = empty_dir("resume", "damaged");
     let whole = d.join("whole");
     let o = search(&whole);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -119,7 +111,7 @@ fn unit_in(dir: &Path, like: &Path) -> PathBuf {
 
 #[test]
 fn reproduce_rederives_every_stored_field() {
-    let d = tmp("reproduce");
+    let d = empty_dir("resume", "reproduce");
     let run = d.join("run");
     assert!(search(&run).status.success());
     let best: Value = serde_json::from_str(&read(&run.join("best.json"))).unwrap();
@@ -164,7 +156,7 @@ fn reproduce_rederives_every_stored_field() {
 
 #[test]
 fn a_full_disk_fails_the_run_and_a_later_resume_works() {
-    let d = tmp("enospc");
+    let d = empty_dir("resume", "enospc");
     let mnt = d.join("small");
     std::fs::create_dir_all(&mnt).unwrap();
     let mounted = Command::new("mount").args(["-t", "tmpfs", "-o", "size=2m", "tmpfs"]).arg(&mnt).status();

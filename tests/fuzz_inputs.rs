@@ -4,14 +4,13 @@
 //! them. Whatever the input: exit 0, 1 or 2, never a panic or an abort, a refusal in one line
 //! that names the file.
 
+mod common;
+use common::bin;
+
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
 
 /// SplitMix64: the test's own seeded stream.
 struct Rng(u64);
