@@ -2,7 +2,7 @@
 //! behind: never a panic, never an abort on a huge allocation.
 
 mod common;
-use common::{bin, empty_dir};
+use common::{bin, empty_dir, json, read};
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -91,7 +91,7 @@ fn huge_sizes_are_refused_with_their_range_before_anything_is_allocated() {
 /// A copy of a shipped spec with `patch` merged in.
 fn patched(env: &str, patch: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("searches/{env}.json"));
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mut v: serde_json::Value = json(path);
     merge(&mut v, &serde_json::from_str(patch).unwrap());
     v.to_string()
 }
@@ -118,7 +118,7 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
 fn a_best_json_off_its_gene_grid_is_refused_not_decoded() {
     let d = empty_dir("bad", "grid");
     let best = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole/best.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(best).unwrap()).unwrap();
+    let mut v: serde_json::Value = json(best);
     v["chromosome"] = serde_json::json!([9, 9, 9, 9, 9]);
     let b = write(&d, "b.json", &v.to_string());
     refused(&d, &["reproduce", &b], &["b.json", "invalid chromosome = [9, 9, 9, 9, 9]: must lie in spec.search.genes"]);
@@ -208,7 +208,7 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("every setting diverged"), "{err}");
     // The records are there to look at.
-    let gen0 = std::fs::read_to_string(d.join("run/generations.jsonl")).unwrap();
+    let gen0 = read(d.join("run/generations.jsonl"));
     assert!(gen0.contains("\"fitness\":null"), "{gen0}");
 }
 
@@ -222,7 +222,7 @@ fn diverged_datasets_have_rows_in_run_csv() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let csv = std::fs::read_to_string(d.join("out/run.csv")).unwrap();
+    let csv = read(d.join("out/run.csv"));
     let rows: Vec<&str> = csv.lines().skip(1).collect();
     for ds in ["0", "1"] {
         let row =

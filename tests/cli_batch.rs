@@ -1,17 +1,13 @@
 //! `bfqi-ga batch` end to end: failing jobs, budget stop and resume, malformed plans.
 
+mod common;
+use common::{TempDir, bin, empty_dir, json, read};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-batch-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> TempDir {
+    empty_dir("batch", name)
 }
 
 const SEARCH: &str = r#"{"name": "s", "search": "cartpole", "presets": ["quick"], "episodes": 25, "datasets": 2, "iterations": 2, "population": 4, "generations": 2, "seed": 4}"#;
@@ -27,17 +23,13 @@ fn batch(args: &[&str]) -> Output {
     bin().arg("batch").args(args).arg("--quiet").output().unwrap()
 }
 
-fn read(p: PathBuf) -> String {
-    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-}
-
 #[test]
 fn a_failing_job_is_recorded_and_the_others_go_on() {
     let d = tmp("fail");
     // A job that passes every check and fails when it runs: its network's learning rate makes
     // every unit diverge. (A job that cannot start is refused with the plan, before anything runs.)
     let spec = Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/cartpole.json");
-    let mut v: serde_json::Value = serde_json::from_str(&read(spec)).unwrap();
+    let mut v: serde_json::Value = json(spec);
     v["search"]["network"]["learning_rate"] = serde_json::json!(1e300);
     std::fs::write(d.join("diverges.json"), v.to_string()).unwrap();
     let bad = format!(
@@ -67,7 +59,7 @@ fn budget_stop_then_resume_equals_an_uninterrupted_batch() {
     // A budget of ~4 ms: the search stops before its first unit.
     let o = batch(&[p.to_str().unwrap(), "--out", cut.to_str().unwrap(), "--max-hours", "0.000001"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let states: serde_json::Value = serde_json::from_str(&read(cut.join("batch.json"))).unwrap();
+    let states: serde_json::Value = json(cut.join("batch.json"));
     assert_eq!(states[0]["state"], "interrupted", "{states}");
     assert_eq!(states[1]["state"], "pending");
     let o = batch(&["--resume", cut.to_str().unwrap()]);
@@ -91,7 +83,7 @@ fn a_malformed_plan_is_refused_naming_the_job_and_field() {
 
 #[test]
 fn the_shipped_overnight_plan_is_valid() {
-    let text = read(PathBuf::from("searches/batches/overnight.json"));
+    let text = read("searches/batches/overnight.json");
     let plan = bfqi_ga::batch::Plan::parse(&text, Path::new("overnight.json")).unwrap();
     assert_eq!(plan.jobs.len(), 6);
 }

@@ -1,14 +1,15 @@
 //! `bfqi-ga bench search --json` on a tiny spec: the fields the README documents are there and
 //! consistent (the figures themselves are timings, never asserted).
 
+mod common;
+use common::{bin, empty_dir, json};
+
 use serde_json::Value;
-use std::process::Command;
 
 #[test]
 fn bench_search_json_has_the_documented_fields() {
-    let dir = std::env::temp_dir().join(format!("bfqi-bench-test-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let mut spec: Value = serde_json::from_str(&std::fs::read_to_string("searches/cartpole.json").unwrap()).unwrap();
+    let dir = empty_dir("bench", "tiny");
+    let mut spec: Value = json("searches/cartpole.json");
     spec["search"]["episodes"] = 30.into();
     spec["search"]["iterations"] = 2.into();
     spec["search"]["datasets"] = 3.into();
@@ -16,7 +17,7 @@ fn bench_search_json_has_the_documented_fields() {
     spec["search"]["network"]["max_epochs"] = 40.into();
     let path = dir.join("tiny.json");
     std::fs::write(&path, serde_json::to_string(&spec).unwrap()).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
+    let out = bin()
         .args(["--jobs", "2", "bench", "search", "--json", "--cap-seconds", "0.5", "--env"])
         .arg(&path)
         .output()
@@ -70,5 +71,4 @@ fn bench_search_json_has_the_documented_fields() {
     assert!((all - generation * e["generations"].as_f64().unwrap()).abs() < 1e-6 * all);
     assert!(p["search_s_elites_reused"].as_f64().unwrap() <= all);
     assert!(e["keras"].is_null(), "no --python, no reference");
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,17 +1,14 @@
 //! `bfqi-ga compare` and `bfqi-ga report` end to end.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+mod common;
+use common::{TempDir, bin, fresh, json, read};
+
+use std::path::Path;
+use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-compare-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn tmp(name: &str) -> TempDir {
+    fresh("compare", name)
 }
 
 /// A small comparison touching every analysis and both learners.
@@ -53,7 +50,7 @@ fn small_compare_writes_every_file_and_threads_do_not_matter() {
     let o = compare(&b, &["--jobs", "2", "--episodes", "40"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
-    let csv = std::fs::read_to_string(a.join("scores.csv")).unwrap();
+    let csv = read(a.join("scores.csv"));
     let header = csv.lines().next().unwrap();
     assert_eq!(
         header,
@@ -72,13 +69,10 @@ fn small_compare_writes_every_file_and_threads_do_not_matter() {
             })
             .collect()
     };
-    assert_eq!(strip(&csv), strip(&std::fs::read_to_string(b.join("scores.csv")).unwrap()), "1 vs 2 threads");
-    assert_eq!(
-        std::fs::read_to_string(a.join("summary.csv")).unwrap(),
-        std::fs::read_to_string(b.join("summary.csv")).unwrap()
-    );
+    assert_eq!(strip(&csv), strip(&read(b.join("scores.csv"))), "1 vs 2 threads");
+    assert_eq!(read(a.join("summary.csv")), read(b.join("summary.csv")));
 
-    let report = std::fs::read_to_string(a.join("report.md")).unwrap();
+    let report = read(a.join("report.md"));
     let mut pngs = 0;
     for entry in std::fs::read_dir(&a).unwrap() {
         let p = entry.unwrap().path();
@@ -96,12 +90,12 @@ fn small_compare_writes_every_file_and_threads_do_not_matter() {
     assert!(report.contains("Cart-pole, Extra-Trees"));
 
     // `report` rebuilds the same tables from the stored units.
-    let before = std::fs::read_to_string(a.join("summary.csv")).unwrap();
+    let before = read(a.join("summary.csv"));
     std::fs::remove_file(a.join("summary.csv")).unwrap();
     std::fs::remove_file(a.join("et-complexity.png")).unwrap();
     let r = bin().arg("report").arg(&a).output().unwrap();
     assert!(r.status.success());
-    assert_eq!(std::fs::read_to_string(a.join("summary.csv")).unwrap(), before);
+    assert_eq!(read(a.join("summary.csv")), before);
     assert!(a.join("et-complexity.png").is_file());
 }
 
@@ -128,18 +122,14 @@ fn interrupted_and_resumed_is_identical() {
     child.wait().unwrap();
     let o = bin().args(["compare", "--resume", cut.to_str().unwrap(), "--quiet"]).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(
-        std::fs::read_to_string(whole.join("summary.csv")).unwrap(),
-        std::fs::read_to_string(cut.join("summary.csv")).unwrap()
-    );
+    assert_eq!(read(whole.join("summary.csv")), read(cut.join("summary.csv")));
 }
 
 #[test]
 fn a_tuned_config_with_a_missing_or_invalid_field_is_refused() {
     let dir = tmp("tuned");
     std::fs::create_dir_all(&dir).unwrap();
-    let mut v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string("searches/tuned/cartpole.json").unwrap()).unwrap();
+    let mut v: serde_json::Value = json("searches/tuned/cartpole.json");
     v.as_object_mut().unwrap().remove("delta_min");
     let p = dir.join("missing.json");
     std::fs::write(&p, v.to_string()).unwrap();

@@ -1,25 +1,24 @@
 //! `bfqi-ga dataset` and `bfqi-ga envs` through the real binary.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
+use common::{TempDir, bin, empty_dir, read};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
+use std::path::Path;
+use std::process::Output;
+
+/// A directory for one test's CSV files, removed when the test ends.
+fn tmp(test: &str) -> TempDir {
+    empty_dir("dataset", test)
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-cli-dataset-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
-
-fn dataset(args: &[&str], out: &PathBuf) -> Output {
+fn dataset(args: &[&str], out: &Path) -> Output {
     bin().arg("dataset").args(args).arg("--out").arg(out).output().unwrap()
 }
 
 #[test]
 fn same_seed_gives_byte_identical_csv_for_any_thread_count() {
-    let (a, b, c) = (tmp("a.csv"), tmp("b.csv"), tmp("c.csv"));
+    let d = tmp("threads");
+    let (a, b, c) = (d.join("a.csv"), d.join("b.csv"), d.join("c.csv"));
     assert!(dataset(&["bicycle", "--episodes", "50", "--seed", "3", "--jobs", "1"], &a).status.success());
     assert!(dataset(&["bicycle", "--episodes", "50", "--seed", "3", "--jobs", "2"], &b).status.success());
     assert!(dataset(&["bicycle", "--episodes", "50", "--seed", "4"], &c).status.success());
@@ -30,10 +29,11 @@ fn same_seed_gives_byte_identical_csv_for_any_thread_count() {
 
 #[test]
 fn csv_has_the_documented_schema_and_round_trips_floats() {
-    let p = tmp("pendulum.csv");
+    let d = tmp("schema");
+    let p = d.join("pendulum.csv");
     let o = dataset(&["pendulum", "--episodes", "2", "--seed", "1"], &p);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(&p).unwrap();
+    let text = read(&p);
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
@@ -57,9 +57,10 @@ fn csv_has_the_documented_schema_and_round_trips_floats() {
 
 #[test]
 fn cartpole_actions_are_indices_and_failures_absorbing() {
-    let p = tmp("cartpole.csv");
+    let d = tmp("cartpole");
+    let p = d.join("cartpole.csv");
     assert!(dataset(&["cartpole", "--episodes", "20"], &p).status.success());
-    let text = std::fs::read_to_string(&p).unwrap();
+    let text = read(&p);
     let rows: Vec<Vec<&str>> = text.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert!(rows.iter().all(|r| r[6] == "0" || r[6] == "1"));
     assert!(rows.iter().any(|r| r[12] == "1"));
@@ -76,7 +77,8 @@ fn assert_bad_input(args: &[&str], needle: &str) {
 
 #[test]
 fn bad_input_is_a_one_line_error_with_exit_code_2() {
-    let out = tmp("x.csv");
+    let d = tmp("bad");
+    let out = d.join("x.csv");
     let out = out.to_str().unwrap();
     assert_bad_input(&["dataset", "acrobot", "--episodes", "5", "--out", out], "pendulum, cartpole, bicycle");
     assert_bad_input(&["dataset", "cartpole", "--episodes", "0", "--out", out], "--episodes");

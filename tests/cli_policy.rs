@@ -2,7 +2,7 @@
 //! and `search --seed-config`, end to end.
 
 mod common;
-use common::{bin, fresh};
+use common::{bin, fresh, json, read};
 
 use serde_json::Value;
 use std::path::Path;
@@ -11,10 +11,6 @@ use std::process::Output;
 fn ok(o: &Output) -> String {
     assert!(o.status.success(), "exit {:?}: {}", o.status.code(), String::from_utf8_lossy(&o.stderr));
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn json(p: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))).unwrap()
 }
 
 fn bits(v: &Value) -> u64 {
@@ -51,12 +47,12 @@ fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
     assert!(stdout.contains("(identical)"), "{stdout}");
 
     // The CSV: one row per step, the documented columns, rewards summing to the recorded score.
-    let csv = std::fs::read_to_string(r.join("trajectory.csv")).unwrap();
+    let csv = read(r.join("trajectory.csv"));
     let mut lines = csv.lines();
     let header = "episode,step,time,x,x_dot,theta,theta_dot,action,action_value,reward,q_0,q_1";
     assert_eq!(lines.next(), Some(header));
     let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse().unwrap()).collect()).collect();
-    let summary = json(&r.join("rollout.json"));
+    let summary = json(r.join("rollout.json"));
     let steps = summary["episodes"][0]["steps"].as_u64().unwrap() as usize;
     assert_eq!(rows.len(), steps);
     assert!(rows.iter().enumerate().all(|(k, row)| row.len() == 12 && row[1] == k as f64));
@@ -71,7 +67,7 @@ fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
     // The drawings: PNG and SVG plots, and a GIF whose frames are the steps shown.
     let png = std::fs::read(r.join("episode-0.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-    assert!(std::fs::read_to_string(r.join("episode-0.svg")).unwrap().contains("<svg"));
+    assert!(read(r.join("episode-0.svg")).contains("<svg"));
     let gif = &summary["episodes"][0]["gif"];
     let frames = gif["frames"].as_u64().unwrap() as usize;
     assert_eq!(gif_frames(&r.join("episode-0.gif")), frames);
@@ -97,9 +93,6 @@ fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     assert!(err.contains("cut.model") && err.contains("truncated or corrupt"), "{err}");
-    for d in [m, r] {
-        std::fs::remove_dir_all(d).unwrap();
-    }
 }
 
 #[test]
@@ -112,14 +105,12 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
         .args(["--generations", "1", "--seed", "3", "--quiet"])
         .output()
         .unwrap());
-    let gen0: Value =
-        serde_json::from_str(std::fs::read_to_string(dir.join("generations.jsonl")).unwrap().lines().next().unwrap())
-            .unwrap();
+    let gen0: Value = serde_json::from_str(read(dir.join("generations.jsonl")).lines().next().unwrap()).unwrap();
     let first = &gen0["individuals"][0];
     assert_eq!(first["origin"], "seeded");
     assert_eq!(first["genes"], serde_json::json!([0, 58, 2, 60, 2]), "the thesis's cart-pole optimum");
     assert_eq!(gen0["individuals"][1]["origin"], "initial");
-    assert_eq!(json(&dir.join("run.json"))["overrides"]["seed_config"], serde_json::json!(["thesis"]));
+    assert_eq!(json(dir.join("run.json"))["overrides"]["seed_config"], serde_json::json!(["thesis"]));
 
     // The search's own best.json scores its recorded fitness, bit for bit.
     let best = dir.join("best.json");
@@ -143,7 +134,7 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
         .output()
         .unwrap());
     assert!(stdout.contains("(identical)"), "{stdout}");
-    let summary = json(&r.join("rollout.json"));
+    let summary = json(r.join("rollout.json"));
     assert_eq!(bits(&summary["episodes"][0]["score"]), bits(&b["scores"][1]));
     // The saved Q-function is that unit's: evaluated on its own episode, it scores the same.
     let e: Value = serde_json::from_str(&ok(&bin()
@@ -171,9 +162,6 @@ fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generati
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("off.json") && err.contains("gene grid"), "{err}");
     assert!(!never.exists());
-    for d in [dir, r] {
-        std::fs::remove_dir_all(d).unwrap();
-    }
 }
 
 #[test]
@@ -191,14 +179,10 @@ fn committed_rollouts_replay_bit_for_bit_from_their_models() {
             .args(["rollout", model.to_str().unwrap(), "--draw", "0", "--out", out.to_str().unwrap()])
             .output()
             .unwrap());
-        let (a, b) = (
-            std::fs::read_to_string(dir.join("trajectory.csv")).unwrap(),
-            std::fs::read_to_string(out.join("trajectory.csv")).unwrap(),
-        );
+        let (a, b) = (read(dir.join("trajectory.csv")), read(out.join("trajectory.csv")));
         assert!(a == b, "{}: the committed trajectory no longer replays", dir.display());
-        let (x, y) = (json(&dir.join("rollout.json")), json(&out.join("rollout.json")));
+        let (x, y) = (json(dir.join("rollout.json")), json(out.join("rollout.json")));
         assert_eq!(x["result"], y["result"], "{}", dir.display());
-        std::fs::remove_dir_all(out).unwrap();
         checked += 1;
     }
     assert!(checked >= 3, "only {checked} committed rollouts with a model");

@@ -1,20 +1,18 @@
 //! `--resume` verifies what it reads, and `reproduce` re-derives every stored field.
 
 mod common;
-use common::{bin, empty_dir};
+use common::{bin, copy_dir, empty_dir, json, read, tiny_with};
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn read(p: &Path) -> String {
-    std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
-}
-
+/// The tiny search, 20 episodes per dataset, seed 8.
 fn search(dir: &Path) -> Output {
     bin()
-        .args(["search", "cartpole", "--quick", "--population", "4", "--generations", "2", "--datasets", "2"])
-        .args(["--episodes", "20", "--iterations", "2", "--seed", "8", "--quiet", "--out", dir.to_str().unwrap()])
+        .args(["search", "cartpole"])
+        .args(tiny_with(&["--episodes", "20", "--seed", "8"]))
+        .args(["--out", dir.to_str().unwrap()])
         .output()
         .unwrap()
 }
@@ -23,22 +21,9 @@ fn resume(dir: &Path) -> Output {
     bin().args(["search", "--resume", dir.to_str().unwrap(), "--quiet"]).output().unwrap()
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap() {
-        let e = e.unwrap();
-        let target = to.join(e.file_name());
-        if e.path().is_dir() {
-            copy_dir(&e.path(), &target);
-        } else {
-            std::fs::copy(e.path(), target).unwrap();
-        }
-    }
-}
-
 /// Each generation's individuals with their scores (times and run records aside).
 fn scores(dir: &Path) -> Vec<Value> {
-    read(&dir.join("generations.jsonl"))
+    read(dir.join("generations.jsonl"))
         .lines()
         .map(|l| {
             let g: Value = serde_json::from_str(l).unwrap();
@@ -54,7 +39,7 @@ fn damaged_directories_resume_to_the_uninterrupted_result() {
     let whole = d.join("whole");
     let o = search(&whole);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let best = read(&whole.join("best.json"));
+    let best = read(whole.join("best.json"));
 
     // A truncated unit, a temporary file a kill left behind and an empty lock (full disk).
     let cut = d.join("cut");
@@ -69,20 +54,20 @@ fn damaged_directories_resume_to_the_uninterrupted_result() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("will be computed again") && err.contains("treated as stale"), "{err}");
     assert_eq!(scores(&cut), scores(&whole));
-    assert_eq!(read(&cut.join("best.json")), best);
+    assert_eq!(read(cut.join("best.json")), best);
     assert!(!cut.join("units/.x.json.tmp999").exists(), "temporary file left");
-    let again: Value = serde_json::from_str(&read(&unit)).unwrap();
+    let again: Value = json(&unit);
     assert!(again["checksum"].is_string() && again["spec_hash"].is_string());
 
     // An edited unit (its score changed, checksum kept) is recomputed too.
     let edited = d.join("edited");
     copy_dir(&whole, &edited);
-    let mut u: Value = serde_json::from_str(&read(&unit_in(&edited, &unit))).unwrap();
+    let mut u: Value = json(unit_in(&edited, &unit));
     u["score"] = serde_json::json!(1234.5);
     std::fs::write(unit_in(&edited, &unit), u.to_string()).unwrap();
     let o = resume(&edited);
     assert!(o.status.success() && String::from_utf8_lossy(&o.stderr).contains("checksum"));
-    assert_eq!(read(&edited.join("best.json")), best);
+    assert_eq!(read(edited.join("best.json")), best);
 
     // A deleted units/ is made again and every unit recomputed.
     let bare = d.join("bare");
@@ -95,14 +80,13 @@ fn damaged_directories_resume_to_the_uninterrupted_result() {
     // An edited spec.json is refused: resuming would mix results of two specs.
     let respec = d.join("respec");
     copy_dir(&whole, &respec);
-    let mut spec: Value = serde_json::from_str(&read(&respec.join("spec.json"))).unwrap();
+    let mut spec: Value = json(respec.join("spec.json"));
     spec["search"]["episodes"] = serde_json::json!(21);
     std::fs::write(respec.join("spec.json"), spec.to_string()).unwrap();
     let o = resume(&respec);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("spec.json: changed since the run began"), "{err}");
-    std::fs::remove_dir_all(d).unwrap();
 }
 
 fn unit_in(dir: &Path, like: &Path) -> PathBuf {
@@ -114,7 +98,7 @@ fn reproduce_rederives_every_stored_field() {
     let d = empty_dir("resume", "reproduce");
     let run = d.join("run");
     assert!(search(&run).status.success());
-    let best: Value = serde_json::from_str(&read(&run.join("best.json"))).unwrap();
+    let best: Value = json(run.join("best.json"));
     let check = |name: &str, edit: &dyn Fn(&mut Value), want: &str| {
         let mut b = best.clone();
         edit(&mut b);
@@ -151,7 +135,6 @@ fn reproduce_rederives_every_stored_field() {
     );
     let o = bin().args(["reproduce", run.join("best.json").to_str().unwrap()]).output().unwrap();
     assert!(o.status.success(), "the untouched best.json reproduces");
-    std::fs::remove_dir_all(d).unwrap();
 }
 
 #[test]
@@ -201,10 +184,9 @@ fn a_full_disk_fails_the_run_and_a_later_resume_works() {
         assert!(o.status.success(), "{err}");
         assert!(err.contains("empty or unreadable lock, treated as stale"), "{err}");
         assert_eq!(scores(&small), scores(&whole));
-        assert_eq!(read(&small.join("best.json")), read(&whole.join("best.json")));
+        assert_eq!(read(small.join("best.json")), read(whole.join("best.json")));
     });
     let _ = Command::new("umount").arg(&mnt).status();
-    let _ = std::fs::remove_dir_all(&d);
     if let Err(e) = result {
         std::panic::resume_unwind(e);
     }

@@ -1,10 +1,13 @@
 //! `bfqi-ga run` end to end: JSON schema, determinism, divergence, bad flags.
 
+mod common;
+use common::{bin, fresh, json, read};
+
 use serde_json::Value;
-use std::process::{Command, Output};
+use std::process::Output;
 
 fn bfqi(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga")).args(args).output().unwrap()
+    bin().args(args).output().unwrap()
 }
 
 fn run_json(extra: &[&str]) -> Value {
@@ -92,7 +95,7 @@ fn mlp_runs_and_a_forced_divergence_is_recorded() {
 
 #[test]
 fn out_writes_json_and_csv() {
-    let dir = std::env::temp_dir().join(format!("bfqi-run-out-{}", std::process::id()));
+    let dir = fresh("run", "out");
     let o = bfqi(&[
         "run",
         "bicycle",
@@ -110,14 +113,14 @@ fn out_writes_json_and_csv() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let table = String::from_utf8_lossy(&o.stdout);
     assert!(table.contains("score (mean ± 95%)"), "{table}");
-    let csv = std::fs::read_to_string(dir.join("run.csv")).unwrap();
+    let csv = read(dir.join("run.csv"));
     let mut lines = csv.lines();
     assert_eq!(
         lines.next().unwrap(),
         "dataset,iteration,score,steps,bellman_residual,epochs,fit_seconds,predict_seconds,eval_seconds,diverged"
     );
     assert_eq!(lines.count(), 4);
-    let json: Value = serde_json::from_str(&std::fs::read_to_string(dir.join("run.json")).unwrap()).unwrap();
+    let json: Value = json(dir.join("run.json"));
     assert_eq!(json["config"]["learner"]["n_trees"], 5);
     assert_eq!(json["config"]["learner"]["min_samples_split"], 8, "bicycle preset");
 }

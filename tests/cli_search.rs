@@ -1,64 +1,18 @@
 //! `bfqi-ga search`, `reproduce` and `status` end to end.
 
+mod common;
+use common::{TempDir, bin, fresh, json, read, tiny_with};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-search-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
-
-/// A tiny but real search: cart-pole, small datasets, 4 individuals, 2 generations.
-const TINY: [&str; 14] = [
-    "--quick",
-    "--episodes",
-    "25",
-    "--datasets",
-    "2",
-    "--iterations",
-    "2",
-    "--population",
-    "4",
-    "--generations",
-    "2",
-    "--seed",
-    "5",
-    "--quiet",
-];
-
-/// TINY with the flags in `extra` replacing its own (`--flag value` pairs, or lone switches).
-fn args_with(extra: &[&str]) -> Vec<String> {
-    let mut args: Vec<String> = TINY.iter().map(|s| s.to_string()).collect();
-    let mut i = 0;
-    while i < extra.len() {
-        let takes_value = i + 1 < extra.len() && !extra[i + 1].starts_with("--");
-        if let Some(p) = args.iter().position(|a| a == extra[i]) {
-            if takes_value {
-                args[p + 1] = extra[i + 1].to_string();
-            }
-        } else {
-            args.push(extra[i].to_string());
-            if takes_value {
-                args.push(extra[i + 1].to_string());
-            }
-        }
-        i += if takes_value { 2 } else { 1 };
-    }
-    args
+fn tmp(name: &str) -> TempDir {
+    fresh("search", name)
 }
 
 fn search(dir: &Path, extra: &[&str]) -> Output {
-    bin().args(["search", "cartpole", "--out", dir.to_str().unwrap()]).args(args_with(extra)).output().unwrap()
-}
-
-fn read(p: PathBuf) -> String {
-    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    bin().args(["search", "cartpole", "--out", dir.to_str().unwrap()]).args(tiny_with(extra)).output().unwrap()
 }
 
 #[test]
@@ -76,19 +30,19 @@ fn one_and_two_threads_give_identical_results_and_reproduce_confirms() {
     assert_eq!(gens.len(), 2);
     assert_eq!(gens[0]["individuals"].as_array().unwrap().len(), 4);
     assert_eq!(gens[0]["individuals"][0]["scores"].as_array().unwrap().len(), 2);
-    let best: serde_json::Value = serde_json::from_str(&read(a.join("best.json"))).unwrap();
+    let best: serde_json::Value = json(a.join("best.json"));
     assert_eq!(best["source"], "search");
     assert_eq!(best["network"]["hidden"], serde_json::json!([10, 10]));
     for f in ["fitness.png", "fitness.svg", "spec.json", "run.json", "state.json"] {
         assert!(a.join(f).is_file(), "{f} missing");
     }
-    let run: serde_json::Value = serde_json::from_str(&read(a.join("run.json"))).unwrap();
+    let run: serde_json::Value = json(a.join("run.json"));
     assert_eq!(run["overrides"]["population"], 4, "overrides are recorded");
     let commit = run["commit"].as_str().unwrap();
     assert!(commit == "unknown" || commit.len() >= 40, "run.json records the source commit: {commit}");
     // Each unit says, per FQI iteration and per action's network, how its training went.
     for e in std::fs::read_dir(a.join("units")).unwrap() {
-        let u: serde_json::Value = serde_json::from_str(&read(e.unwrap().path())).unwrap();
+        let u: serde_json::Value = json(e.unwrap().path());
         let its = u["iterations"].as_array().unwrap();
         assert_eq!(its.len(), 2, "K = 2: {u}");
         let mut epochs = 0;
@@ -132,7 +86,7 @@ fn killed_mid_generation_and_resumed_ends_identical() {
 
     let mut child = bin()
         .args(["search", "cartpole", "--out", killed.to_str().unwrap()])
-        .args(args_with(&slower))
+        .args(tiny_with(&slower))
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -180,7 +134,7 @@ fn a_second_process_on_the_same_run_is_refused() {
 fn malformed_specs_give_exit_2_and_a_one_line_message() {
     let dir = tmp("specs");
     std::fs::create_dir_all(&dir).unwrap();
-    let base: serde_json::Value = serde_json::from_str(&read(PathBuf::from("searches/cartpole.json"))).unwrap();
+    let base: serde_json::Value = json("searches/cartpole.json");
     let cases: Vec<(&str, serde_json::Value, &str)> = vec![
         ("truncated", serde_json::Value::Null, "EOF"),
         (
@@ -235,7 +189,7 @@ fn malformed_specs_give_exit_2_and_a_one_line_message() {
 /// The cart-pole spec with `edit` applied, written to `dir/name.json`.
 fn spec_file(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) -> PathBuf {
     std::fs::create_dir_all(dir).unwrap();
-    let mut v: serde_json::Value = serde_json::from_str(&read(PathBuf::from("searches/cartpole.json"))).unwrap();
+    let mut v: serde_json::Value = json("searches/cartpole.json");
     edit(&mut v);
     let p = dir.join(format!("{name}.json"));
     std::fs::write(&p, v.to_string()).unwrap();
@@ -245,7 +199,7 @@ fn spec_file(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) 
 fn search_spec(spec: &Path, dir: &Path, extra: &[&str]) -> Output {
     bin()
         .args(["search", spec.to_str().unwrap(), "--out", dir.to_str().unwrap()])
-        .args(args_with(extra))
+        .args(tiny_with(extra))
         .output()
         .unwrap()
 }
@@ -310,7 +264,7 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
     }
     assert!(gb[1]["prune_below"].is_number() && ga[1].get("prune_below").is_none());
     let best = |d: &Path| {
-        let mut v: serde_json::Value = serde_json::from_str(&read(d.join("best.json"))).unwrap();
+        let mut v: serde_json::Value = json(d.join("best.json"));
         v.as_object_mut().unwrap().retain(|k, _| k != "spec" && k != "spec_hash");
         v
     };
@@ -364,11 +318,11 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
     }
     assert!(stops > 0, "the budget never stopped it; the test needs a smaller budget");
     // Each generation's wall time is recorded once, however many invocations it took.
-    let st: serde_json::Value = serde_json::from_str(&read(d.join("state.json"))).unwrap();
+    let st: serde_json::Value = json(d.join("state.json"));
     let secs = st["generation_seconds"].as_array().unwrap();
     assert_eq!(secs.len(), 4, "one wall time per generation after {stops} resumes: {secs:?}");
     assert!(secs.iter().all(|s| s.as_f64().unwrap() > 0.0), "{secs:?}");
-    let run: serde_json::Value = serde_json::from_str(&read(d.join("run.json"))).unwrap();
+    let run: serde_json::Value = json(d.join("run.json"));
     assert_eq!(run["resumed"].as_array().map(Vec::len), Some(stops), "run.json lists each resume");
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
@@ -427,8 +381,8 @@ fn the_winner_is_validated_on_fresh_datasets() {
     let dir = tmp("validate");
     let o = search(&dir, &["--jobs", "2"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_str(&read(dir.join("validation.json"))).unwrap();
-    let hall: serde_json::Value = serde_json::from_str(&read(dir.join("hall_of_fame.json"))).unwrap();
+    let v: serde_json::Value = json(dir.join("validation.json"));
+    let hall: serde_json::Value = json(dir.join("hall_of_fame.json"));
     let entries = v["entries"].as_array().unwrap();
     // The top 3 in fitness order, then the thesis optimum (never drawn by this tiny search).
     assert_eq!(entries.len(), 4, "{v}");
@@ -445,7 +399,7 @@ fn the_winner_is_validated_on_fresh_datasets() {
             e["search_scores"][0] != e["validation_scores"][0] || e["search_scores"][1] != e["validation_scores"][1];
     }
     assert!(differ, "validation datasets are not the search's: {v}");
-    let best: serde_json::Value = serde_json::from_str(&read(dir.join("best.json"))).unwrap();
+    let best: serde_json::Value = json(dir.join("best.json"));
     let tuned = entries.iter().find(|e| e["setting"] == v["tuned"]).unwrap();
     assert_eq!(best["validation"]["scores"], tuned["validation_scores"]);
     assert_eq!(best["validation"]["summary"], tuned["validation"]);

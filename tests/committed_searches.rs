@@ -2,12 +2,10 @@
 //! from their records and units, the README's tables are the reports' own rows, and the cheapest
 //! one's tuned config reproduces bit for bit from a fresh clone.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+use common::{bin, copy_dir, fresh, json, read};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
+use std::path::PathBuf;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches")
@@ -27,25 +25,12 @@ fn searches() -> Vec<(String, PathBuf)> {
     out
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for e in std::fs::read_dir(from).unwrap().flatten() {
-        let p = e.path();
-        if p.is_dir() {
-            copy_dir(&p, &to.join(e.file_name()));
-        } else {
-            std::fs::copy(&p, to.join(e.file_name())).unwrap();
-        }
-    }
-}
-
 #[test]
 fn reports_rebuild_identically_from_the_stored_records() {
     let found = searches();
     assert!(!found.is_empty(), "no committed search under {}", root().display());
     for (name, dir) in found {
-        let copy = std::env::temp_dir().join(format!("bfqi-committed-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&copy);
+        let copy = fresh("committed", &name);
         copy_dir(&dir, &copy);
         let derived = ["fitness.csv", "fitness.png", "fitness.svg", "report.md"];
         for f in derived {
@@ -57,21 +42,19 @@ fn reports_rebuild_identically_from_the_stored_records() {
             let (a, b) = (std::fs::read(dir.join(f)).unwrap(), std::fs::read(copy.join(f)).unwrap());
             assert!(a == b, "{name}/{f}: `bfqi-ga report` does not rebuild the committed file");
         }
-        std::fs::remove_dir_all(&copy).unwrap();
     }
 }
 
 #[test]
 fn a_record_that_disagrees_with_its_unit_is_refused() {
     let (name, dir) = searches().into_iter().next().expect("a committed search");
-    let copy = std::env::temp_dir().join(format!("bfqi-committed-{}-edited-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&copy);
+    let copy = fresh("committed", &format!("edited-{name}"));
     copy_dir(&dir, &copy);
     // A unit generation 0 scores its first individual with.
-    let gens = std::fs::read_to_string(copy.join("generations.jsonl")).unwrap();
+    let gens = read(copy.join("generations.jsonl"));
     let g0: serde_json::Value = serde_json::from_str(gens.lines().next().unwrap()).unwrap();
     let first = copy.join("units").join(format!("{}.d0.json", g0["individuals"][0]["setting"].as_str().unwrap()));
-    let mut unit: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&first).unwrap()).unwrap();
+    let mut unit: serde_json::Value = json(&first);
     let score = unit["score"].as_f64().expect("a finite score in the first unit");
     unit["score"] = serde_json::json!(score + 1.0);
     std::fs::write(&first, serde_json::to_string(&unit).unwrap()).unwrap();
@@ -79,14 +62,13 @@ fn a_record_that_disagrees_with_its_unit_is_refused() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("generations.jsonl") && err.contains(first.file_name().unwrap().to_str().unwrap()), "{err}");
-    std::fs::remove_dir_all(&copy).unwrap();
 }
 
 /// The README's rows of the tables it copies from the search reports (the generations table and
 /// the dataset-by-dataset table), with the section they are in: `## <env> …`, where `<env>` is the
 /// run directory's name, hyphens allowed (`cart-pole`).
 fn readme_rows() -> Vec<(String, String)> {
-    let text = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let text = read(root().join("README.md"));
     let (mut section, mut header) = (String::new(), String::new());
     let mut rows = Vec::new();
     for line in text.lines() {
@@ -115,7 +97,7 @@ fn the_readme_tables_are_the_reports_rows() {
     let rows = readme_rows();
     let mut checked = 0;
     for (name, dir) in searches() {
-        let report = std::fs::read_to_string(dir.join("report.md")).unwrap();
+        let report = read(dir.join("report.md"));
         for (_, row) in rows.iter().filter(|(s, _)| *s == name) {
             assert!(report.lines().any(|l| l == row), "README row not in {name}/report.md:\n{row}");
             checked += 1;

@@ -5,7 +5,7 @@
 //! that names the file.
 
 mod common;
-use common::bin;
+use common::{bin, empty_dir, read};
 
 use serde_json::Value;
 use std::path::Path;
@@ -137,9 +137,7 @@ fn run(args: &[String], dir: &Path) -> Option<(i32, String)> {
 #[test]
 fn mutated_inputs_never_panic_and_refusals_name_their_file() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let work = std::env::temp_dir().join(format!("bfqi-fuzz-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&work);
-    std::fs::create_dir_all(&work).unwrap();
+    let work = empty_dir("fuzz", "inputs");
 
     // A small search's best.json, the input `reproduce` reads.
     let o = bin()
@@ -149,9 +147,9 @@ fn mutated_inputs_never_panic_and_refusals_name_their_file() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let best = std::fs::read_to_string(work.join("tiny/best.json")).unwrap();
+    let best = read(work.join("tiny/best.json"));
 
-    let read = |p: &str| std::fs::read_to_string(root.join(p)).unwrap();
+    let read = |p: &str| read(root.join(p));
     // (input, what the command does with the mutated file at `m`)
     type Cmd = fn(&str) -> Vec<String>;
     let cases: Vec<(String, Cmd)> = vec![
@@ -193,5 +191,4 @@ fn mutated_inputs_never_panic_and_refusals_name_their_file() {
         started.elapsed().as_secs_f64()
     );
     assert!(refused > runs / 2, "most mutations must be refused: {refused} of {runs}");
-    std::fs::remove_dir_all(work).unwrap();
 }

@@ -1,53 +1,28 @@
 //! The Slurm executor: driver logic against a stand-in `sbatch` (always), and against a real
 //! single-node Slurm cluster when `BFQI_REAL_SLURM=1` (CI starts one with scripts/local-slurm.sh).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::{TempDir, bin, empty_dir, read, tiny_with};
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
-}
+use std::path::Path;
+use std::process::Output;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bfqi-slurm-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmp(name: &str) -> TempDir {
+    empty_dir("slurm", name)
 }
 
 fn fake() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support/fake-sbatch.sh").display().to_string()
 }
 
-const SEARCH: [&str; 15] = [
-    "search",
-    "cartpole",
-    "--quick",
-    "--episodes",
-    "25",
-    "--datasets",
-    "2",
-    "--iterations",
-    "2",
-    "--population",
-    "4",
-    "--generations",
-    "2",
-    "--quiet",
-    "--seed",
-];
-
+/// The tiny search, seed 3.
 fn search(out: &Path, extra: &[&str], env: &[(&str, String)]) -> Output {
     let mut c = bin();
-    c.args(SEARCH).arg("3").arg("--out").arg(out).args(extra);
+    c.args(["search", "cartpole"]).args(tiny_with(&["--seed", "3"])).arg("--out").arg(out).args(extra);
     for (k, v) in env {
         c.env(k, v);
     }
     c.output().unwrap()
-}
-
-fn read(p: PathBuf) -> String {
-    std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
 #[test]

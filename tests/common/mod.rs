@@ -1,7 +1,11 @@
-//! Scaffolding shared by the end-to-end tests: the binary and per-process temporary directories.
+//! Scaffolding shared by the end-to-end tests: the binary, temporary directories that remove
+//! themselves, file helpers and the tiny search every CLI test builds on.
 #![allow(dead_code)] // each test file uses part of it
 
-use std::path::PathBuf;
+use serde_json::Value;
+use std::ffi::OsStr;
+use std::ops::Deref;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// The `bfqi-ga` binary under test.
@@ -9,16 +13,127 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_bfqi-ga"))
 }
 
-/// A path under the temporary directory, unique to this process, that does not exist yet.
-pub fn fresh(prefix: &str, name: &str) -> PathBuf {
+/// A directory under the system's temporary directory, unique to this process and name, removed
+/// when dropped. A failing test keeps it (and prints where), so its files can be inspected.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// The path, without creating anything (for `--out` directories the tool must create).
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// The path as a string, for command-line arguments built with `format!` or `&str` slices.
+    pub fn str(&self) -> &str {
+        self.0.to_str().expect("temporary paths are UTF-8")
+    }
+}
+
+impl Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<OsStr> for TempDir {
+    fn as_ref(&self) -> &OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept {} for inspection", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A [`TempDir`] that does not exist yet (anything left by an earlier run is removed).
+pub fn fresh(prefix: &str, name: &str) -> TempDir {
     let d = std::env::temp_dir().join(format!("bfqi-{prefix}-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
-    d
+    TempDir(d)
 }
 
 /// [`fresh`], created empty.
-pub fn empty_dir(prefix: &str, name: &str) -> PathBuf {
+pub fn empty_dir(prefix: &str, name: &str) -> TempDir {
     let d = fresh(prefix, name);
-    std::fs::create_dir_all(&d).unwrap();
+    std::fs::create_dir_all(&d.0).unwrap();
     d
+}
+
+/// The file's text; a missing file fails the test naming it.
+pub fn read(p: impl AsRef<Path>) -> String {
+    let p = p.as_ref();
+    std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// The file parsed as JSON.
+pub fn json(p: impl AsRef<Path>) -> Value {
+    let p = p.as_ref();
+    serde_json::from_str(&read(p)).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+}
+
+/// Copies a directory tree (a run directory, to damage or resume the copy).
+pub fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        let target = to.join(e.file_name());
+        if e.path().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+/// A tiny but real search's flags: cart-pole-sized datasets of 25 episodes, 2 datasets, 2 FQI
+/// iterations, 4 individuals, 2 generations, quiet. Seconds per run.
+pub const TINY: [&str; 14] = [
+    "--quick",
+    "--episodes",
+    "25",
+    "--datasets",
+    "2",
+    "--iterations",
+    "2",
+    "--population",
+    "4",
+    "--generations",
+    "2",
+    "--seed",
+    "5",
+    "--quiet",
+];
+
+/// [`TINY`] with the flags in `extra` replacing its own (`--flag value` pairs, or lone switches).
+pub fn tiny_with(extra: &[&str]) -> Vec<String> {
+    let mut args: Vec<String> = TINY.iter().map(|s| s.to_string()).collect();
+    let mut i = 0;
+    while i < extra.len() {
+        let takes_value = i + 1 < extra.len() && !extra[i + 1].starts_with("--");
+        if let Some(p) = args.iter().position(|a| a == extra[i]) {
+            if takes_value {
+                args[p + 1] = extra[i + 1].to_string();
+            }
+        } else {
+            args.push(extra[i].to_string());
+            if takes_value {
+                args.push(extra[i + 1].to_string());
+            }
+        }
+        i += if takes_value { 2 } else { 1 };
+    }
+    args
 }
