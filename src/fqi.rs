@@ -345,143 +345,9 @@ fn add(acc: &mut [f64], x: &[f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::env::{EvalConfig, Outcome, ScoreKind};
     use crate::learn::actions::ActionEncoding;
-    use crate::learn::{FitInfo, Regressor, Rows};
-    use crate::rng::Rng;
-    use std::collections::HashMap;
+    use crate::testkit::{Chain, Table, chain_data, value_iteration};
     use std::sync::atomic::{AtomicUsize, Ordering};
-
-    /// A 6-state chain: action 1 moves right, 0 moves left; reaching state 5 pays 1 and absorbs.
-    /// Every other step pays −0.1 (so Q* is not trivial).
-    struct Chain {
-        eval: EvalConfig,
-        actions: Vec<f64>,
-    }
-
-    impl Chain {
-        fn new() -> Self {
-            Chain {
-                eval: EvalConfig { episodes: 1, steps: 20, score: ScoreKind::Return, start: vec![[0.0, 0.0]] },
-                actions: vec![0.0, 1.0],
-            }
-        }
-        fn next(s: f64, a: f64) -> f64 {
-            if a > 0.5 { (s + 1.0).min(5.0) } else { (s - 1.0).max(0.0) }
-        }
-    }
-
-    impl Env for Chain {
-        fn name(&self) -> &'static str {
-            "chain"
-        }
-        fn state_dim(&self) -> usize {
-            1
-        }
-        fn obs_dim(&self) -> usize {
-            1
-        }
-        fn observe(&self, s: &[f64], o: &mut [f64]) {
-            o[0] = s[0];
-        }
-        fn actions(&self) -> &[f64] {
-            &self.actions
-        }
-        fn gamma(&self) -> f64 {
-            0.9
-        }
-        fn horizon(&self) -> usize {
-            20
-        }
-        fn dataset_start(&self, _: &mut Rng, s: &mut [f64]) {
-            s[0] = 0.0;
-        }
-        fn dataset_action(&self, _: &mut Rng) -> f64 {
-            1.0
-        }
-        fn step(&self, s: &[f64], a: f64, _: &mut Rng, next: &mut [f64]) -> Outcome {
-            next[0] = Chain::next(s[0], a);
-            let done = next[0] == 5.0;
-            Outcome { reward: if done { 1.0 } else { -0.1 }, failed: done }
-        }
-        fn eval(&self) -> &EvalConfig {
-            &self.eval
-        }
-    }
-
-    /// Every (state, action) pair of the chain once.
-    fn chain_data() -> Dataset {
-        let mut d = Dataset {
-            obs_dim: 1,
-            episode: vec![],
-            step: vec![],
-            state: vec![],
-            action: vec![],
-            reward: vec![],
-            next_state: vec![],
-            absorbing: vec![],
-        };
-        for s in 0..5 {
-            for a in [0.0, 1.0] {
-                let n = Chain::next(s as f64, a);
-                d.episode.push(d.episode.len() as u32);
-                d.step.push(0);
-                d.state.push(s as f64);
-                d.action.push(a);
-                d.reward.push(if n == 5.0 { 1.0 } else { -0.1 });
-                d.next_state.push(n);
-                d.absorbing.push(n == 5.0);
-            }
-        }
-        d
-    }
-
-    /// An exact learner: a lookup table of the mean target per distinct input row. Counts its fits.
-    struct Table<'c>(&'c AtomicUsize);
-    #[derive(Debug, Clone)]
-    struct TableModel(HashMap<Vec<u64>, f64>, usize);
-
-    impl Regressor for TableModel {
-        fn n_inputs(&self) -> usize {
-            self.1
-        }
-        fn predict_row(&self, row: &[f64]) -> f64 {
-            *self.0.get(&row.iter().map(|v| v.to_bits()).collect::<Vec<_>>()).unwrap_or(&0.0)
-        }
-    }
-
-    impl Learner for Table<'_> {
-        type Model = TableModel;
-        fn check(&self) -> Result<()> {
-            Ok(())
-        }
-        fn fit(&self, x: Rows<'_>, y: &[f64], _seed: u64) -> Result<(TableModel, FitInfo)> {
-            self.0.fetch_add(1, Ordering::SeqCst);
-            let mut sums: HashMap<Vec<u64>, (f64, f64)> = HashMap::new();
-            for (i, &t) in y.iter().enumerate() {
-                let e = sums.entry(x.row(i).iter().map(|v| v.to_bits()).collect()).or_default();
-                e.0 += t;
-                e.1 += 1.0;
-            }
-            let m = sums.into_iter().map(|(k, (s, n))| (k, s / n)).collect();
-            Ok((TableModel(m, x.n_cols()), FitInfo::NOT_ITERATIVE))
-        }
-    }
-
-    /// Value iteration on the chain from Q_0 = 0, K sweeps: Q[s][a].
-    fn value_iteration(k: usize) -> Vec<[f64; 2]> {
-        let mut q = vec![[0.0f64; 2]; 6];
-        for _ in 0..k {
-            let old = q.clone();
-            for (s, qs) in q.iter_mut().enumerate().take(5) {
-                for (a, qa) in qs.iter_mut().enumerate() {
-                    let n = Chain::next(s as f64, a as f64) as usize;
-                    *qa = if n == 5 { 1.0 } else { -0.1 + 0.9 * old[n][0].max(old[n][1]) };
-                }
-            }
-        }
-        q
-    }
 
     fn settings(algorithm: Algorithm, iterations: usize) -> FqiSettings {
         FqiSettings { algorithm, iterations, eval_every: 1 }
@@ -491,7 +357,7 @@ mod tests {
     fn fqi_with_an_exact_learner_is_value_iteration() {
         let (env, d) = (Chain::new(), chain_data());
         for enc in [ActionEncoding::Input, ActionEncoding::PerAction] {
-            let e = Encoded::new(&d, &env.actions, enc).unwrap();
+            let e = Encoded::new(&d, env.actions(), enc).unwrap();
             let count = AtomicUsize::new(0);
             let learner = Table(&count);
             for k in 1..=8 {
@@ -511,7 +377,7 @@ mod tests {
     #[test]
     fn bfqi_sum_of_members_equals_fqi_with_an_exact_learner() {
         let (env, d) = (Chain::new(), chain_data());
-        let e = Encoded::new(&d, &env.actions, ActionEncoding::Input).unwrap();
+        let e = Encoded::new(&d, env.actions(), ActionEncoding::Input).unwrap();
         let count = AtomicUsize::new(0);
         let learner = Table(&count);
         let mut fqi = Fqi::new(&env, &d, &e, &learner, settings(Algorithm::Fqi, 10), 1, 2);
@@ -545,7 +411,7 @@ mod tests {
     fn bfqi_fits_one_model_per_iteration_and_running_sums_match_members() {
         let (env, d) = (Chain::new(), chain_data());
         for enc in [ActionEncoding::Input, ActionEncoding::PerAction] {
-            let e = Encoded::new(&d, &env.actions, enc).unwrap();
+            let e = Encoded::new(&d, env.actions(), enc).unwrap();
             let count = AtomicUsize::new(0);
             let learner = Table(&count);
             let mut f = Fqi::new(&env, &d, &e, &learner, settings(Algorithm::Bfqi, 7), 1, 2);
@@ -574,7 +440,7 @@ mod tests {
     fn non_finite_rewards_are_a_divergence_not_a_crash() {
         let (env, mut d) = (Chain::new(), chain_data());
         d.reward[3] = f64::INFINITY;
-        let e = Encoded::new(&d, &env.actions, ActionEncoding::Input).unwrap();
+        let e = Encoded::new(&d, env.actions(), ActionEncoding::Input).unwrap();
         let count = AtomicUsize::new(0);
         let learner = Table(&count);
         let rec = Fqi::new(&env, &d, &e, &learner, settings(Algorithm::Fqi, 5), 1, 2).run(|_| {}).unwrap();
@@ -586,7 +452,7 @@ mod tests {
     fn per_action_refuses_continuous_actions() {
         let (env, mut d) = (Chain::new(), chain_data());
         d.action[0] = 0.3;
-        let err = Encoded::new(&d, &env.actions, ActionEncoding::PerAction).unwrap_err().to_string();
+        let err = Encoded::new(&d, env.actions(), ActionEncoding::PerAction).unwrap_err().to_string();
         assert!(err.contains("per_action"), "{err}");
     }
 }

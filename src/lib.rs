@@ -24,6 +24,8 @@ pub mod rng;
 pub mod rollout;
 pub mod spec;
 pub mod store;
+#[cfg(test)]
+pub(crate) mod testkit;
 pub mod tuned;
 
 pub use error::{Error, Result};
