@@ -15,6 +15,7 @@ use crate::learn::LearnerConfig;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::MlpParams;
 use crate::progress::Progress;
+use crate::report::claims::ClaimSpec;
 use crate::spec::{Preset, SampleSweep, Spec};
 use crate::store::{self, RunLock, read_json, write_json};
 use crate::tuned::TunedConfig;
@@ -55,6 +56,9 @@ pub struct LearnerPlan {
     pub complexities: Vec<usize>,
     /// The sample analysis.
     pub samples: Option<SampleSweep>,
+    /// The thesis claims its report checks (from the spec's preset).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub claims: Vec<ClaimSpec>,
 }
 
 /// Everything that determines a comparison (saved as `compare.json`).
@@ -134,6 +138,7 @@ impl CompareConfig {
                 episodes: o.episodes.unwrap_or(p.episodes),
                 complexities: o.complexities.clone().unwrap_or_else(|| p.complexities.clone()),
                 samples: p.samples.clone(),
+                claims: p.claims.clone(),
             };
             if let Some(s) = &mut plan.samples {
                 if let Some(sizes) = &o.sizes {

@@ -13,6 +13,7 @@ use crate::ga::operators::GaParams;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::MlpParams;
 use crate::learn::{Learner, LearnerConfig};
+use crate::report::claims::ClaimSpec;
 use crate::store;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -41,6 +42,10 @@ pub struct Preset {
     /// The sample analysis (thesis §4.6).
     #[serde(default)]
     pub samples: Option<SampleSweep>,
+    /// The thesis's claims a comparison of this learner checks (SPEC §6), with their thresholds.
+    /// Left out of the file when empty, so specs written before claims moved here hash alike.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub claims: Vec<ClaimSpec>,
 }
 
 /// The sample analysis: one complexity per algorithm, scored against dataset size.
@@ -97,6 +102,9 @@ impl Preset {
             for (i, &n) in s.sizes.iter().enumerate() {
                 limits::episodes(&format!("samples.sizes[{i}]"), n, horizon)?;
             }
+        }
+        for (i, c) in self.claims.iter().enumerate() {
+            c.validate().map_err(|e| e.within(&format!("claims[{i}]")))?;
         }
         self.learner.check()
     }
@@ -331,6 +339,9 @@ impl Spec {
     pub fn results_hash(&self) -> String {
         let mut s = self.clone();
         s.search.stop = StopRules { generations: 1, max_hours: None, stall_generations: None };
+        // Claims decide how a comparison is read, not any number a search computes.
+        s.experiments.et.claims.clear();
+        s.experiments.mlp.claims.clear();
         s.hash()
     }
 
@@ -427,5 +438,34 @@ mod tests {
         assert!(e.contains("iteratons"), "{e}");
         let e = Spec::parse("{ not json", origin).unwrap_err().to_string();
         assert!(e.starts_with("my.json: "), "{e}");
+    }
+
+    #[test]
+    fn claims_are_checked_with_their_path_and_do_not_change_the_results_hash() {
+        let origin = Path::new("my.json");
+        let base = Spec::parse_value(BUILTIN[0].1, origin).unwrap();
+        let (spec, _) = Spec::resolve("pendulum").unwrap();
+        assert_eq!(spec.experiments.mlp.claims.len(), 2, "complexity and sample claims");
+        let claims = |v: &mut serde_json::Value| v["experiments"]["mlp"]["claims"].as_array_mut().unwrap().clone();
+        let mut v = base.clone();
+        let mut c = claims(&mut v);
+        c[1]["share"] = serde_json::json!(1.5);
+        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+        assert!(e.contains("experiments.mlp.claims[1].share = 1.5") && e.contains("(0, 1]"), "{e}");
+        c[1] = serde_json::json!({"rule": "mostly_worse", "share": 0.5, "statement": "x"});
+        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+        assert!(e.contains("mostly_worse") && e.contains("mostly_better"), "{e}");
+        c[1] = serde_json::json!({"rule": "simpler_model", "steps": 5, "statement": "x"});
+        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+        assert!(e.contains("experiments.mlp.claims") && e.contains("steps"), "{e}");
+        // Rewording or dropping a claim changes no number a search computes.
+        let mut v = base.clone();
+        v["experiments"]["et"]["claims"] = serde_json::json!([]);
+        let other = Spec::from_value(v, origin).unwrap();
+        assert_eq!(other.results_hash(), spec.results_hash());
+        assert_ne!(other.hash(), spec.hash());
     }
 }

@@ -1,6 +1,6 @@
-//! The full-size searches committed under `results/searches/`: their reports rebuild identically
-//! from their records and units, the README's tables are the reports' own rows, and the cheapest
-//! one's tuned config reproduces bit for bit from a fresh clone.
+//! The runs committed under `results/`: every search's and comparison's tables, plots and report
+//! rebuild identically from their records and units, the README's tables are the search reports'
+//! own rows, and the cheapest search's tuned config reproduces bit for bit from a fresh clone.
 
 mod common;
 use common::{bin, copy_dir, fresh, json, read};
@@ -39,6 +39,46 @@ fn reports_rebuild_identically_from_the_stored_records() {
         let o = bin().arg("report").arg(&copy).output().unwrap();
         assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
         for f in derived {
+            let (a, b) = (std::fs::read(dir.join(f)).unwrap(), std::fs::read(copy.join(f)).unwrap());
+            assert!(a == b, "{name}/{f}: `bfqi-ga report` does not rebuild the committed file");
+        }
+    }
+}
+
+/// Every committed comparison (a directory with a compare.json): the thesis references and the
+/// comparisons run with a search's tuned config.
+fn comparisons() -> Vec<PathBuf> {
+    let results = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results");
+    let mut out: Vec<PathBuf> = ["thesis", "searches"]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(results.join(d)).unwrap().flatten().map(|e| e.path()))
+        .filter(|p| p.join("compare.json").is_file())
+        .collect();
+    out.sort();
+    out
+}
+
+#[test]
+fn comparison_reports_rebuild_identically_from_their_units() {
+    let found = comparisons();
+    assert!(found.len() >= 10, "the thesis references are committed: {found:?}");
+    for dir in found {
+        let name = dir.file_name().unwrap().to_string_lossy().into_owned();
+        let copy = fresh("committed-compare", &name);
+        copy_dir(&dir, &copy);
+        let derived: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|f| [".png", ".svg", ".csv", ".md"].iter().any(|x| f.ends_with(x)))
+            .collect();
+        assert!(derived.iter().any(|f| f == "report.md"), "{name}: no report.md");
+        for f in &derived {
+            std::fs::remove_file(copy.join(f)).unwrap();
+        }
+        let o = bin().arg("report").arg(&copy).output().unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        for f in &derived {
             let (a, b) = (std::fs::read(dir.join(f)).unwrap(), std::fs::read(copy.join(f)).unwrap());
             assert!(a == b, "{name}/{f}: `bfqi-ga report` does not rebuild the committed file");
         }

@@ -41,6 +41,14 @@ pub enum ScoreKind {
     DiscountedReturn,
 }
 
+impl ScoreKind {
+    /// Whether reports show steps survived beside the score: a discounted return hides how long
+    /// an episode lasted (a return counts the steps; a per-step mean runs every step).
+    pub fn hides_steps(self) -> bool {
+        self == ScoreKind::DiscountedReturn
+    }
+}
+
 /// The evaluation protocol of an environment (SPEC §1, "Evaluation").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,8 +1,109 @@
 //! The thesis's claims (SPEC §6) evaluated on a comparison's numbers. Each rule is written out so a
-//! reader can check the verdict by hand from the tables next to it.
+//! reader can check the verdict by hand from the tables next to it. Which claims a comparison
+//! checks, and their thresholds, come from the spec file (`experiments.<learner>.claims`).
 
+use crate::error::{Result, ensure};
 use crate::report::stats::Summary;
 use serde::{Deserialize, Serialize};
+
+/// A claim a spec asks a comparison to check, with the rule that decides it and its thresholds:
+/// `{"rule": "simpler_model", "score": 198, "statement": "…"}`. The rule names the analysis whose
+/// numbers decide it: `simpler_model` and `similar_complexity` the complexity sweep,
+/// `one_balances` and `both_balance` the iterations analysis (steps survived), `mostly_better` the
+/// dataset-size sweep.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "rule", rename_all = "snake_case")]
+pub enum ClaimSpec {
+    /// B-FQI reaches `score` at a strictly smaller complexity than FQI.
+    SimplerModel(ScoreClaim),
+    /// The complexities at which each reaches `score` differ by at most `tolerance`.
+    SimilarComplexity(SimilarClaim),
+    /// B-FQI's mean steps at the last iteration reach `steps`, and FQI's interval lies below B-FQI's.
+    OneBalances(StepsClaim),
+    /// Both algorithms' mean steps at the last iteration reach `steps`.
+    BothBalance(StepsClaim),
+    /// B-FQI's mean is at least FQI's at a `share` of the dataset sizes or more.
+    MostlyBetter(ShareClaim),
+}
+
+/// A claim with a score threshold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScoreClaim {
+    /// What the thesis says.
+    pub statement: String,
+    /// The mean last-iteration score that counts as reaching the top.
+    pub score: f64,
+}
+
+/// A claim that two complexities are close.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimilarClaim {
+    /// What the thesis says.
+    pub statement: String,
+    /// The mean last-iteration score that counts as reaching the top.
+    pub score: f64,
+    /// How many complexity steps apart the two may reach it.
+    pub tolerance: usize,
+}
+
+/// A claim about steps survived.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StepsClaim {
+    /// What the thesis says.
+    pub statement: String,
+    /// Mean steps at the last iteration that count as balancing.
+    pub steps: f64,
+}
+
+/// A claim about how often one algorithm wins.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShareClaim {
+    /// What the thesis says.
+    pub statement: String,
+    /// The share of sizes (0–1] B-FQI must win or tie.
+    pub share: f64,
+}
+
+impl<'de> Deserialize<'de> for ClaimSpec {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use crate::error::tagged;
+        let (rule, rest) = crate::error::take_tag(d, "rule")?;
+        match rule.as_str() {
+            "simpler_model" => tagged(rest).map(ClaimSpec::SimplerModel),
+            "similar_complexity" => tagged(rest).map(ClaimSpec::SimilarComplexity),
+            "one_balances" => tagged(rest).map(ClaimSpec::OneBalances),
+            "both_balance" => tagged(rest).map(ClaimSpec::BothBalance),
+            "mostly_better" => tagged(rest).map(ClaimSpec::MostlyBetter),
+            other => Err(serde::de::Error::unknown_variant(
+                other,
+                &["simpler_model", "similar_complexity", "one_balances", "both_balance", "mostly_better"],
+            )),
+        }
+    }
+}
+
+impl ClaimSpec {
+    /// Checks the thresholds; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            ClaimSpec::SimplerModel(c) => ensure(c.score.is_finite(), "score", c.score, "must be a finite score"),
+            ClaimSpec::SimilarComplexity(c) => {
+                ensure(c.score.is_finite(), "score", c.score, "must be a finite score")?;
+                crate::limits::within("tolerance", c.tolerance, 0, crate::limits::WIDTH)
+            }
+            ClaimSpec::OneBalances(c) | ClaimSpec::BothBalance(c) => {
+                ensure(c.steps.is_finite() && c.steps >= 0.0, "steps", c.steps, "must be a finite count ≥ 0")
+            }
+            ClaimSpec::MostlyBetter(c) => {
+                ensure(c.share > 0.0 && c.share <= 1.0, "share", c.share, "must be in (0, 1]")
+            }
+        }
+    }
+}
 
 /// Whether a run supports a claim.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -108,13 +209,13 @@ pub fn both_balance(statement: &str, fqi: Summary, bfqi: Summary, good: f64) -> 
 }
 
 /// "B-FQI almost always beats FQI across dataset sizes": supported iff B-FQI's mean is at least
-/// FQI's at ≥ 75 % of the sizes.
-pub fn mostly_better(statement: &str, pairs: &[(usize, Summary, Summary)]) -> Claim {
+/// FQI's at a `share` of the sizes or more.
+pub fn mostly_better(statement: &str, pairs: &[(usize, Summary, Summary)], share: f64) -> Claim {
     let wins = pairs.iter().filter(|(_, f, b)| b.mean >= f.mean).count();
-    let ok = !pairs.is_empty() && wins * 4 >= pairs.len() * 3;
+    let ok = !pairs.is_empty() && wins as f64 >= share * pairs.len() as f64;
     Claim {
         statement: statement.to_string(),
-        rule: "B-FQI's mean ≥ FQI's at ≥ 75 % of the dataset sizes".to_string(),
+        rule: format!("B-FQI's mean ≥ FQI's at ≥ {} % of the dataset sizes", share * 100.0),
         verdict: if ok { Verdict::Supported } else { Verdict::NotSupported },
         evidence: format!("B-FQI ≥ FQI at {wins} of {} sizes", pairs.len()),
     }
@@ -168,8 +269,10 @@ mod tests {
             (1000, s(-1.0, 0.1), s(-1.1, 0.1)),
             (2000, s(-1.0, 0.1), s(-0.9, 0.1)),
         ];
-        assert_eq!(mostly_better("x", &pairs).verdict, Verdict::Supported);
-        assert_eq!(mostly_better("x", &pairs[2..3]).verdict, Verdict::NotSupported);
+        assert_eq!(mostly_better("x", &pairs, 0.75).verdict, Verdict::Supported);
+        assert!(mostly_better("x", &pairs, 0.75).rule.contains("≥ 75 % of"));
+        assert_eq!(mostly_better("x", &pairs, 1.0).verdict, Verdict::NotSupported);
+        assert_eq!(mostly_better("x", &pairs[2..3], 0.75).verdict, Verdict::NotSupported);
         let a = table(&[100.0, 195.0, 199.0]);
         let b = table(&[100.0, 100.0, 195.0]);
         assert_eq!(similar_complexity("x", "units", &a, &b, 190.0, 1).verdict, Verdict::Supported);
