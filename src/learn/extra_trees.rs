@@ -24,7 +24,7 @@
 //! also a training state takes that row's leaf, recorded during the build, and walks only from the
 //! splits on the action above it.
 
-use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, check_training_data};
+use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows, check_training_data, cpu};
 use crate::error::{Error, Result, ensure};
 use crate::rng::{self, Rng};
 use rayon::prelude::*;
@@ -1000,21 +1000,21 @@ struct Split {
     n_left: usize,
 }
 
-/// Builds one tree, with AVX-512 kernels when the CPU has them. Both paths build the same tree: the
-/// kernels add in the same order (explicit lanes), and partitions and extrema are exact.
+/// Builds one tree, with AVX-512 kernels when the CPU has them (and `BFQI_ISA` does not cap them,
+/// see [`cpu`]). Both paths build the same tree: the kernels add in the same order (explicit
+/// lanes), and partitions and extrema are exact.
 ///
 /// When `data.idx` is set, `routes` gets each training row's leaf and each leaf's value and fork.
 fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
     #[cfg(target_arch = "x86_64")]
-    {
-        if avx512::available() {
-            // SAFETY: the features were just detected.
+    match cpu::extra_trees() {
+        // SAFETY: the guard checked every feature `build_tree_avx512` is compiled with.
+        isa @ cpu::Isa::Avx512 if isa.runs_extra_trees() => {
             return unsafe { build_tree_avx512(p, data, ws, rng, routes) };
         }
-        if is_x86_feature_detected!("avx2") {
-            // SAFETY: the feature was just detected.
-            return unsafe { build_tree_avx2(p, data, ws, rng, routes) };
-        }
+        // SAFETY: as above.
+        isa @ cpu::Isa::Avx2 if isa.runs_extra_trees() => return unsafe { build_tree_avx2(p, data, ws, rng, routes) },
+        _ => {}
     }
     build_tree_impl::<false>(p, data, ws, rng, routes)
 }
@@ -1398,15 +1398,6 @@ mod portable {
 mod avx512 {
     use super::{LeftSums, mean_var_of_sums};
     use std::arch::x86_64::*;
-
-    /// Whether this CPU runs these kernels.
-    pub fn available() -> bool {
-        is_x86_feature_detected!("avx512f")
-            && is_x86_feature_detected!("avx512vl")
-            && is_x86_feature_detected!("avx512bw")
-            && is_x86_feature_detected!("avx512dq")
-            && is_x86_feature_detected!("popcnt")
-    }
 
     /// The lanes of a block of 16 rows that exist, when `len` rows remain.
     #[inline(always)]
@@ -1900,7 +1891,7 @@ mod tests {
     #[test]
     fn vector_and_portable_kernels_build_the_same_trees() {
         #[cfg(target_arch = "x86_64")]
-        if avx512::available() {
+        if cpu::Isa::Avx512.runs_extra_trees() {
             // Sizes around the block lengths (16, 32) and the sweep step, a large target offset
             // (rounding differences would show) and duplicated inputs (ties at thresholds).
             for (n, offset) in [(1, 0.0), (15, 0.0), (17, 1e6), (33, -3.0), (700, 1e6), (5000, 0.5)] {
