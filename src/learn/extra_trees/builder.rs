@@ -2,14 +2,15 @@
 //! scratch memory it reuses.
 
 use super::ExtraTreesParams;
-use super::criterion::mean_var;
-use super::kernels::portable;
+#[cfg(target_arch = "x86_64")]
+use super::kernels::{Avx2, avx512::Avx512};
+use super::kernels::{Build, Kernels, Portable, portable};
 use super::partition::{Partitioner, canonical};
 use super::routes::{NO_FORK, Record, Routes, record_leaf};
 use super::splitter::{NodeRows, Splitter, query_threshold};
 use super::tree::{LEAF, Node, Tree};
 use crate::error::{Error, Result};
-use crate::learn::{Rows, cpu};
+use crate::learn::Rows;
 use crate::rng::Rng;
 
 /// The training set as the trees read it: inputs in `f32`, column-major (`x[f * n + i]`).
@@ -132,47 +133,67 @@ struct Pending {
 }
 
 /// Builds one tree, with AVX-512 kernels when the CPU has them (and `BFQI_ISA` does not cap them,
-/// see [`cpu`]). Both paths build the same tree: the kernels add in the same order (explicit
-/// lanes), and partitions and extrema are exact.
+/// see [`crate::learn::cpu`]). Every build makes the same tree: the kernels add in the same order
+/// (explicit lanes), and partitions and extrema are exact.
 ///
 /// When `data.idx` is set, `routes` gets each training row's leaf and each leaf's value and fork.
 pub(super) fn build_tree(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
-    #[cfg(target_arch = "x86_64")]
-    match cpu::extra_trees() {
-        // SAFETY: the guard checked every feature `build_tree_avx512` is compiled with.
-        isa @ cpu::Isa::Avx512 if isa.runs_extra_trees() => {
-            return unsafe { build_tree_avx512(p, data, ws, rng, routes) };
-        }
-        // SAFETY: as above.
-        isa @ cpu::Isa::Avx2 if isa.runs_extra_trees() => return unsafe { build_tree_avx2(p, data, ws, rng, routes) },
-        _ => {}
-    }
-    build_tree_impl::<false>(p, data, ws, rng, routes)
+    build_tree_with(Build::chosen(), p, data, ws, rng, routes)
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,popcnt")]
-pub(super) fn build_tree_avx512(
+/// [`build_tree`] with the kernels of `build`.
+pub(super) fn build_tree_with(
+    build: Build,
     p: &ExtraTreesParams,
     data: &Data,
     ws: &mut Workspace,
     rng: Rng,
     routes: &mut Routes,
 ) -> Tree {
-    build_tree_impl::<true>(p, data, ws, rng, routes)
+    match build {
+        Build::Portable => build_tree_impl(Portable, p, data, ws, rng, routes),
+        // SAFETY: `k` exists only if this CPU has every feature `build_tree_avx2` is compiled with.
+        #[cfg(target_arch = "x86_64")]
+        Build::Avx2(k) => unsafe { build_tree_avx2(k, p, data, ws, rng, routes) },
+        // SAFETY: as above, for `build_tree_avx512`.
+        #[cfg(target_arch = "x86_64")]
+        Build::Avx512(k) => unsafe { build_tree_avx512(k, p, data, ws, rng, routes) },
+    }
+}
+
+/// The builder compiled with the AVX-512 features (the set [`Avx512`] proves), so that the
+/// kernels' intrinsics inline into it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,popcnt")]
+fn build_tree_avx512(
+    k: Avx512,
+    p: &ExtraTreesParams,
+    data: &Data,
+    ws: &mut Workspace,
+    rng: Rng,
+    routes: &mut Routes,
+) -> Tree {
+    build_tree_impl(k, p, data, ws, rng, routes)
 }
 
 /// The portable kernels, compiled for AVX2 (the compiler vectorises the extrema).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn build_tree_avx2(p: &ExtraTreesParams, data: &Data, ws: &mut Workspace, rng: Rng, routes: &mut Routes) -> Tree {
-    build_tree_impl::<false>(p, data, ws, rng, routes)
+fn build_tree_avx2(
+    _: Avx2,
+    p: &ExtraTreesParams,
+    data: &Data,
+    ws: &mut Workspace,
+    rng: Rng,
+    routes: &mut Routes,
+) -> Tree {
+    build_tree_impl(Portable, p, data, ws, rng, routes)
 }
 
-/// The builder (sklearn's depth-first builder with its random splitter). `WIDE` selects the AVX-512
-/// kernels; it is only true inside [`build_tree_avx512`].
+/// The builder (sklearn's depth-first builder with its random splitter), on the kernels `k`.
 #[inline(always)]
-pub(super) fn build_tree_impl<const WIDE: bool>(
+fn build_tree_impl<K: Kernels>(
+    k: K,
     p: &ExtraTreesParams,
     data: &Data,
     ws: &mut Workspace,
@@ -205,13 +226,13 @@ pub(super) fn build_tree_impl<const WIDE: bool>(
             (&ws.ax[..], &ws.ay[..], &ws.ai[..], &mut ws.bx[..], &mut ws.by[..], &mut ws.bi[..])
         };
         let ys = &src_y[start..end];
-        let (mean, var) = mean_var::<WIDE>(ys);
+        let (mean, var) = k.mean_var(ys);
 
         let mut best = None;
         // sklearn's leaf rules; `var <= EPSILON` is its "impurity ≈ 0".
         if n >= min_split && n >= 2 * min_leaf && depth < max_depth && var > f64::EPSILON {
             let node = NodeRows { x: src_x, n_all, start, ys };
-            best = ws.splitter.node_split::<WIDE>(&mut rng, node, &ws.ranges[r0..], mean, min_leaf);
+            best = ws.splitter.node_split(k, &mut rng, node, &ws.ranges[r0..], mean, min_leaf);
         }
 
         ws.ranges.truncate(r0);
@@ -238,7 +259,7 @@ pub(super) fn build_tree_impl<const WIDE: bool>(
             .take(if move_x { d } else { 0 })
             .map(|(s, t)| (&s[start..end], &mut t[start..end]));
         let rows = if track { Some((&src_i[start..end], &mut dst_i[start..end])) } else { None };
-        ws.partitioner.partition::<WIDE>(key, &split, columns, (ys, &mut dst_y[start..end]), rows);
+        ws.partitioner.partition(k, key, &split, columns, (ys, &mut dst_y[start..end]), rows);
 
         let left = nodes.len();
         nodes[slot] = Node { val: query_threshold(split.thr), feat: split.feat as u32, left: left as u32 };
@@ -252,7 +273,7 @@ pub(super) fn build_tree_impl<const WIDE: bool>(
             [(left + 1, leaf_right, mid..end, right_ranges), (left, leaf_left, start..mid, left_ranges)]
         {
             if leaf {
-                let mean = mean_var::<WIDE>(&dst_y[rows.clone()]).0;
+                let mean = k.mean_var(&dst_y[rows.clone()]).0;
                 nodes[child] = Node::leaf(child, mean);
                 if track {
                     record_leaf(mean, fork, &dst_i[rows], routes);

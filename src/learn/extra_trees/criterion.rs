@@ -1,9 +1,7 @@
 //! Variance arithmetic (sklearn's `MSE` criterion): a node's mean and variance, and each candidate's
 //! left-side count and target sum, with sums kept in fixed lanes so every kernel adds in one order.
 
-#[cfg(target_arch = "x86_64")]
-use super::kernels::avx512;
-use super::kernels::portable;
+use super::kernels::Kernels;
 use super::splitter::{Candidate, NodeRows};
 
 /// Rows with `x <= t` so far, their target sums in 32 lanes (lane k: rows ≡ k mod 32), and the
@@ -21,17 +19,6 @@ impl Default for LeftSums {
     }
 }
 
-/// Mean and population variance of `ys` (non-empty); see [`portable::mean_var`].
-#[inline(always)]
-pub(super) fn mean_var<const WIDE: bool>(ys: &[f64]) -> (f64, f64) {
-    #[cfg(target_arch = "x86_64")]
-    if WIDE {
-        // SAFETY: see super::builder::build_tree_impl.
-        return unsafe { avx512::mean_var(ys) };
-    }
-    portable::mean_var(ys)
-}
-
 /// Rows per sweep step in [`count_sum_left`] (a multiple of 32): the step's targets (16 KiB) stay
 /// in L1 while every candidate's column passes over them.
 const SWEEP: usize = 2048;
@@ -39,18 +26,16 @@ const SWEEP: usize = 2048;
 /// For each candidate, the rows of the node with `x <= thr` and the sum of their targets, left in
 /// `sums[i].count` and `sums[i].sum`.
 #[inline(always)]
-pub(super) fn count_sum_left<const WIDE: bool>(node: NodeRows<'_>, cands: &[Candidate], sums: &mut [LeftSums]) {
+pub(super) fn count_sum_left<K: Kernels>(k: K, node: NodeRows<'_>, cands: &[Candidate], sums: &mut [LeftSums]) {
     let NodeRows { x: src_x, n_all, start, ys } = node;
     let n = ys.len();
-    #[cfg(target_arch = "x86_64")]
-    if WIDE && n <= SWEEP {
+    if K::NODE_SUMS && n <= SWEEP {
         // One sweep step: each candidate's lanes live in registers and are reduced there, in the
         // same order as below (most nodes are small, and for them the trip through memory and the
         // scalar reduction cost more than the counting).
         for (c, s) in cands.iter().zip(sums.iter_mut()) {
             let xs = &src_x[c.feat * n_all + start..c.feat * n_all + start + n];
-            // SAFETY: see super::builder::build_tree_impl.
-            (s.count, s.sum) = unsafe { avx512::count_sum_node(xs, ys, c.thr) };
+            (s.count, s.sum) = k.count_sum_node(xs, ys, c.thr);
         }
         return;
     }
@@ -60,20 +45,20 @@ pub(super) fn count_sum_left<const WIDE: bool>(node: NodeRows<'_>, cands: &[Cand
         let b = (a + SWEEP).min(n);
         for (c, s) in cands.iter().zip(sums.iter_mut()) {
             let xs = &src_x[c.feat * n_all + start + a..c.feat * n_all + start + b];
-            #[cfg(target_arch = "x86_64")]
-            if WIDE {
-                // SAFETY: see super::builder::build_tree_impl.
-                unsafe { avx512::count_sum_blocks(xs, &ys[a..b], c.thr, s) };
-                continue;
-            }
-            portable::count_sum_blocks(xs, &ys[a..b], c.thr, s);
+            k.count_sum_blocks(xs, &ys[a..b], c.thr, s);
         }
         a = b;
     }
     for s in sums.iter_mut() {
-        let l = &s.lanes;
-        s.sum = hsum8(std::array::from_fn(|j| (l[j] + l[j + 8]) + (l[j + 16] + l[j + 24])));
+        s.sum = lanes_total(&s.lanes);
     }
+}
+
+/// The total of [`LeftSums::lanes`]: lane-wise `(l[j] + l[j+8]) + (l[j+16] + l[j+24])`, then
+/// [`hsum8`] (the order the AVX-512 kernels reduce their registers in).
+#[inline(always)]
+pub(super) fn lanes_total(l: &[f64; 32]) -> f64 {
+    hsum8(std::array::from_fn(|j| (l[j] + l[j + 8]) + (l[j + 16] + l[j + 24])))
 }
 
 /// Sum of 8 lanes in the order of an AVX-512 halving reduction (the same order in every path).

@@ -2,6 +2,7 @@
 //! best of them by variance reduction, and the `f32` thresholds it works with.
 
 use super::criterion::{LeftSums, count_sum_left};
+use super::kernels::Kernels;
 use crate::rng::{self, Rng};
 
 /// sklearn's `FEATURE_THRESHOLD`: a feature whose range in the node is at most this is constant.
@@ -59,8 +60,9 @@ impl Splitter {
     /// among those leaving `min_leaf` rows on each side; none if no candidate does. `mean` is the
     /// node's mean target.
     #[inline(always)]
-    pub(super) fn node_split<const WIDE: bool>(
+    pub(super) fn node_split<K: Kernels>(
         &mut self,
+        k: K,
         rng: &mut Rng,
         node: NodeRows<'_>,
         ranges: &[(f32, f32)],
@@ -90,7 +92,7 @@ impl Splitter {
             self.cands.push(Candidate { feat: f, thr: round_down_f32(thr) });
         }
         let sums = &mut self.sums[..self.cands.len()];
-        count_sum_left::<WIDE>(node, &self.cands, sums);
+        count_sum_left(k, node, &self.cands, sums);
         // The first candidate with the largest proxy among those leaving `min_leaf` rows on
         // each side, chosen with selects: which candidate wins is a coin toss, and
         // mispredicted branches cost a small node more than the arithmetic.

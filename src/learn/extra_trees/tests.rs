@@ -1,14 +1,13 @@
 //! The Extra-Trees' tests: pinned forests, the growing rules, kernels and walks that must agree bit
 //! for bit, and the checks of settings and data.
 
-#[cfg(target_arch = "x86_64")]
-use super::builder::build_tree_avx512;
-use super::builder::{Data, Workspace, build_tree_impl};
+use super::builder::{Data, Workspace, build_tree_with};
+use super::kernels::Build;
 use super::predict::LANES;
 use super::routes::{NO_FORK, Record, Routes};
 use super::splitter::{query_threshold, round_down_f32};
 use super::*;
-use crate::learn::{NO_ROW, NextStates, Regressor, cpu};
+use crate::learn::{NO_ROW, NextStates, Regressor};
 
 /// `n` rows of `d` uniform inputs in [-1, 1) from a fixed stream.
 fn random_x(n: usize, d: usize, seed: u64) -> Vec<f64> {
@@ -215,31 +214,48 @@ fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
+/// Every kernel build this CPU runs (whatever `BFQI_ISA` says) grows the same trees as the portable
+/// one, node for node, leaf for leaf, so the forests predict the same bits.
 #[test]
-fn vector_and_portable_kernels_build_the_same_trees() {
-    #[cfg(target_arch = "x86_64")]
-    if cpu::Isa::Avx512.runs_extra_trees() {
-        // Sizes around the block lengths (16, 32) and the sweep step, a large target offset
-        // (rounding differences would show) and duplicated inputs (ties at thresholds).
-        for (n, offset) in [(1, 0.0), (15, 0.0), (17, 1e6), (33, -3.0), (700, 1e6), (5000, 0.5)] {
-            let mut x = random_x(n, 3, n as u64);
-            x.iter_mut().skip(2).step_by(3).for_each(|v| *v = (*v * 4.0).round());
-            let y: Vec<f64> = x.chunks(3).map(|r| offset + target(r) + r[2]).collect();
-            // Forks at splits on the last column.
-            let data = Data::new(Rows::new(&x, 3).unwrap(), &y, Record::Routes(2)).unwrap();
-            for p in [params(1, None, 2, 1), params(1, Some(5), 4, 2)] {
+fn every_kernel_build_grows_the_same_trees() {
+    let builds = Build::available();
+    assert!(matches!(builds.last(), Some(Build::Portable)), "{builds:?}");
+    let fresh = random_x(500, 3, 98);
+    // Sizes around the block lengths (16, 32) and the sweep step, a large target offset
+    // (rounding differences would show) and duplicated inputs (ties at thresholds).
+    for (n, offset) in [(1, 0.0), (15, 0.0), (17, 1e6), (33, -3.0), (700, 1e6), (5000, 0.5)] {
+        let mut x = random_x(n, 3, n as u64);
+        x.iter_mut().skip(2).step_by(3).for_each(|v| *v = (*v * 4.0).round());
+        let y: Vec<f64> = x.chunks(3).map(|r| offset + target(r) + r[2]).collect();
+        // Forks at splits on the last column.
+        let data = Data::new(Rows::new(&x, 3).unwrap(), &y, Record::Routes(2)).unwrap();
+        for p in [params(3, None, 2, 1), params(3, Some(5), 4, 2)] {
+            let grow = |build: Build| {
                 let mut ws = Workspace::new(3, n);
-                let routes = || Routes { leaf_of: vec![0; n], value: Vec::new(), fork: Vec::new() };
-                let (mut la, mut lb) = (routes(), routes());
-                let a = build_tree_impl::<false>(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut la);
-                // SAFETY: the features were just detected.
-                let b = unsafe { build_tree_avx512(&p, &data, &mut ws, rng::stream(9, "tree", &[0]), &mut lb) };
-                assert_eq!(a.counts, b.counts, "n {n}");
-                assert_eq!((&la.leaf_of, &la.fork), (&lb.leaf_of, &lb.fork), "n {n}");
-                assert_eq!(bits(&la.value), bits(&lb.value), "n {n}");
-                for (u, v) in a.nodes.iter().zip(&b.nodes) {
-                    assert_eq!((u.val.to_bits(), u.feat, u.left), (v.val.to_bits(), v.feat, v.left), "n {n}");
+                let mut routes = Vec::new();
+                let trees = (0..p.n_trees as u64)
+                    .map(|t| {
+                        let mut r = Routes { leaf_of: vec![0; n], value: Vec::new(), fork: Vec::new() };
+                        let tree = build_tree_with(build, &p, &data, &mut ws, rng::stream(9, "tree", &[t]), &mut r);
+                        routes.push(r);
+                        tree
+                    })
+                    .collect();
+                (ExtraTrees { n_inputs: 3, trees }, routes)
+            };
+            let (want, want_routes) = grow(Build::Portable);
+            for &build in &builds {
+                let (got, got_routes) = grow(build);
+                for ((a, b), (la, lb)) in want.trees.iter().zip(&got.trees).zip(want_routes.iter().zip(&got_routes)) {
+                    assert_eq!(a.counts, b.counts, "{build:?}, n {n}");
+                    assert_eq!((&la.leaf_of, &la.fork), (&lb.leaf_of, &lb.fork), "{build:?}, n {n}");
+                    assert_eq!(bits(&la.value), bits(&lb.value), "{build:?}, n {n}");
+                    for (u, v) in a.nodes.iter().zip(&b.nodes) {
+                        let node = |u: &tree::Node| (u.val.to_bits(), u.feat, u.left);
+                        assert_eq!(node(u), node(v), "{build:?}, n {n}");
+                    }
                 }
+                assert_eq!(bits(&predict(&got, &fresh)), bits(&predict(&want, &fresh)), "{build:?}, n {n}");
             }
         }
     }

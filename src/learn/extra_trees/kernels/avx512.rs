@@ -2,8 +2,72 @@
 //! block of 16 rows is read with masked loads, so no row is handled by scalar code (small nodes
 //! are many, and a scalar loop's unpredictable branches cost more than the vector work).
 
+use super::Kernels;
+use crate::learn::cpu::Isa;
 use crate::learn::extra_trees::criterion::{LeftSums, mean_var_of_sums};
+use crate::learn::extra_trees::partition::Marks;
 use std::arch::x86_64::*;
+
+/// The AVX-512 kernels. Holding one proves that this CPU has every feature they are compiled with
+/// (avx512f, avx512vl, avx512bw, avx512dq, popcnt: the set [`crate::learn::cpu`] checks): the
+/// private field keeps it from being made but by [`Avx512::detect`].
+#[derive(Debug, Clone, Copy)]
+pub struct Avx512 {
+    _detected: (),
+}
+
+impl Avx512 {
+    /// The kernels, if this CPU runs them.
+    pub fn detect() -> Option<Avx512> {
+        Isa::Avx512.runs_extra_trees().then_some(Avx512 { _detected: () })
+    }
+}
+
+impl Kernels for Avx512 {
+    const NODE_SUMS: bool = true;
+
+    #[inline(always)]
+    fn mean_var(self, ys: &[f64]) -> (f64, f64) {
+        // SAFETY: `self` proves the CPU has the features the function is compiled with.
+        unsafe { mean_var(ys) }
+    }
+
+    #[inline(always)]
+    fn count_sum_blocks(self, xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums) {
+        // SAFETY: as above.
+        unsafe { count_sum_blocks(xs, ys, t, s) }
+    }
+
+    #[inline(always)]
+    fn count_sum_node(self, xs: &[f32], ys: &[f64], t: f32) -> (usize, f64) {
+        // SAFETY: as above.
+        unsafe { count_sum_node(xs, ys, t) }
+    }
+
+    #[inline(always)]
+    fn mark(self, key: &[f32], t: f32, _: usize, marks: &mut Marks) {
+        // SAFETY: as above.
+        unsafe { left_masks(key, t, &mut marks.masks[..key.len().div_ceil(16)]) }
+    }
+
+    #[inline(always)]
+    fn move_column(self, src: &[f32], dst: &mut [f32], marks: &Marks, n_left: usize) -> ((f32, f32), (f32, f32)) {
+        // SAFETY: as above.
+        unsafe { partition_min_max(src, dst, &marks.masks[..src.len().div_ceil(16)], n_left) }
+    }
+
+    #[inline(always)]
+    fn move_targets(self, src: &[f64], dst: &mut [f64], marks: &Marks, n_left: usize) {
+        // SAFETY: as above.
+        unsafe { partition(src, dst, &marks.masks[..src.len().div_ceil(16)], n_left) }
+    }
+
+    #[inline(always)]
+    fn move_rows(self, src: &[u32], dst: &mut [u32], marks: &Marks, n_left: usize) {
+        // SAFETY: as above.
+        unsafe { partition(src, dst, &marks.masks[..src.len().div_ceil(16)], n_left) }
+    }
+}
 
 /// The lanes of a block of 16 rows that exist, when `len` rows remain.
 #[inline(always)]
@@ -73,9 +137,8 @@ pub fn count_sum_blocks(xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums) {
 }
 
 /// The rows with `x <= t` and the sum of their targets, for a whole node: the lanes of
-/// [`super::portable::count_sum_blocks`] from zero, reduced as `criterion::count_sum_left` reduces
-/// them (lane-wise `(l[j] + l[j+8]) + (l[j+16] + l[j+24])`, then `criterion::hsum8`'s halving
-/// order).
+/// [`super::portable::count_sum_blocks`] from zero, reduced in registers in the order of
+/// [`lanes_total`](crate::learn::extra_trees::criterion::lanes_total).
 #[inline]
 #[target_feature(enable = "avx512f,avx512dq,popcnt")]
 pub fn count_sum_node(xs: &[f32], ys: &[f64], t: f32) -> (usize, f64) {
