@@ -9,25 +9,26 @@
 //! Like scikit-learn, the inputs are compared in `f32`: thresholds are chosen among the rows' `f32`
 //! values, and a query goes left iff `(x as f32) <= t`. The stored `f64` threshold is rewritten so
 //! that the plain `x <= threshold` on the `f64` query gives exactly that answer (see
-//! [`splitter::query_threshold`]), which keeps prediction free of conversions.
+//! `splitter::query_threshold`), which keeps prediction free of conversions.
 //!
 //! Speed: each tree works on its own copy of the data, stored column by column and physically
 //! partitioned at every split (two buffers, alternating with depth), so every pass over a node's
 //! rows reads contiguous memory; on CPUs with AVX-512 the passes are vectorised by hand (see
-//! [`kernels::avx512`]), with sums kept in the same lanes as the portable code so the trees are identical.
-//! Tree `t` draws from the stream `(seed, "tree", t)` only, so the forest is identical for any
-//! thread count. Prediction walks 8 trees (or 8 rows) at once, branch-free, so cache misses overlap.
-//! [`Regressor::predict_actions_into`] (Q of every action, the action being the last input) walks
-//! each tree once per state and forks only at the splits on the action (see [`predict::forked_walks`]),
-//! adding the trees in the same order as `predict_row`, so its answers are bit-identical.
+//! `kernels::avx512`), with sums kept in the same lanes as the portable code so the trees are
+//! identical. Tree `t` draws from the stream `(seed, "tree", t)` only, so the forest is identical
+//! for any thread count. Prediction walks 8 trees (or 8 rows) at once, branch-free, so cache misses
+//! overlap. [`Regressor::predict_actions_into`](super::Regressor::predict_actions_into) (Q of every
+//! action, the action being the last input) walks each tree once per state and forks only at the
+//! splits on the action (see `predict::forked_walks`), adding the trees in the same order as
+//! `predict_row`, so its answers are bit-identical.
 //! [`Learner::fit_predict_next`] (FQI's Q(x′, ·) with the fit) goes further: a next state that is
 //! also a training state takes that row's leaf, recorded during the build, and walks only from the
 //! splits on the action above it.
 //!
-//! The code follows the seams of scikit-learn's `sklearn/tree`: [`tree`] (nodes and their storage),
-//! [`builder`] (the depth-first builder), [`splitter`] (the random split rule), [`criterion`]
-//! (variance arithmetic), [`partition`] (moving a node's rows to its children), [`kernels`]
-//! (portable and AVX-512), [`predict`] (the walks), and [`routes`] (what only FQI needs).
+//! The code follows the seams of scikit-learn's `sklearn/tree`: `tree` (nodes and their storage),
+//! `builder` (the depth-first builder), `splitter` (the random split rule), `criterion` (variance
+//! arithmetic), `partition` (moving a node's rows to its children), `kernels` (portable and
+//! AVX-512), `predict` (the walks), and `routes` (what only FQI needs).
 
 mod builder;
 mod criterion;

@@ -13,8 +13,9 @@ pub(super) struct Routes {
     /// The leaves the rows reach, in the order they were made: small arrays (a few rows per leaf
     /// at least), where the rows' lookups at random stay in cache, unlike the tree's nodes.
     pub(super) value: Vec<f64>,
-    /// The first node on the leaf's path that splits on [`super::builder::Data::fork_col`], or [`NO_FORK`]: where
-    /// a walk with the leaf's rows' state and any action leaves their path.
+    /// The first node on the leaf's path that splits on
+    /// [`Data::fork_col`](super::builder::Data::fork_col), or [`NO_FORK`]: where a walk with the
+    /// leaf's rows' state and any action leaves their path.
     pub(super) fork: Vec<u32>,
 }
 

@@ -296,8 +296,8 @@ fn loss_and_gradient_on(isa: Isa, shape: &Shape, params: &[f32], x: &[f32], y: &
     sse / y.len() as f64
 }
 
-/// Which kernel build fits and predictions use on this CPU: `avx512`, `avx2` or `portable` (see
-/// [`crate::learn::cpu`] for the `BFQI_ISA` cap).
+/// Which kernel build fits and predictions use on this CPU: `avx512`, `avx2` or `portable` (the
+/// best it has, capped by the environment variable `BFQI_ISA`; see `learn/cpu.rs`).
 pub fn kernel_isa() -> &'static str {
     cpu::mlp().name()
 }

@@ -113,7 +113,8 @@ pub fn mean_var(ys: &[f64]) -> (f64, f64) {
     mean_var_of_sums(y0, s, q, n)
 }
 
-/// [`hsum8`](crate::learn::extra_trees::criterion::hsum8) of a vector's lanes, by halving in registers (the same order).
+/// [`hsum8`](crate::learn::extra_trees::criterion::hsum8) of a vector's lanes, by halving in
+/// registers (the same order).
 #[inline]
 #[target_feature(enable = "avx512f")]
 fn hsum(v: __m512d) -> f64 {

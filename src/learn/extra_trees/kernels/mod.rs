@@ -27,8 +27,7 @@ pub(super) trait Kernels: Copy {
     fn count_sum_blocks(self, xs: &[f32], ys: &[f64], t: f32, s: &mut LeftSums);
 
     /// The rows of a whole node with `x <= t` and the sum of their targets: the lanes of
-    /// [`Kernels::count_sum_blocks`] from zero, reduced by
-    /// [`lanes_total`](super::criterion::lanes_total).
+    /// [`Kernels::count_sum_blocks`] from zero, reduced by [`lanes_total`].
     fn count_sum_node(self, xs: &[f32], ys: &[f64], t: f32) -> (usize, f64);
 
     /// Notes in `marks` where a stable partition of a node's rows by `key <= t` sends each row
