@@ -5,6 +5,7 @@
 //! batch of rows or for one row (the greedy policy asks one state at a time).
 
 pub mod actions;
+pub(crate) mod cpu;
 pub mod extra_trees;
 pub mod mlp;
 

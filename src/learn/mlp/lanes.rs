@@ -542,72 +542,9 @@ impl Lanes for Avx2 {
     }
 }
 
-/// The instruction-set level a pass is compiled for. Only the speed differs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Isa {
-    /// AVX-512F with FMA: 16 lanes per instruction.
-    Avx512,
-    /// AVX2 with FMA: 8 lanes per instruction.
-    Avx2,
-    /// Plain loops: baseline x86-64 (where `mul_add` calls the C library's exact but slow
-    /// `fmaf`, so it is a last resort), or any other target (e.g. aarch64, with native FMA).
-    Portable,
-}
-
-impl Isa {
-    /// The best level this CPU supports, capped by `BFQI_MLP_ISA` (`avx512`, `avx2` or
-    /// `portable`) when set, which is how the slower paths are benchmarked.
-    pub(crate) fn detect() -> Isa {
-        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
-        *ISA.get_or_init(|| {
-            let cap = match std::env::var("BFQI_MLP_ISA").as_deref() {
-                Ok("portable") => Isa::Portable,
-                Ok("avx2") => Isa::Avx2,
-                _ => Isa::Avx512,
-            };
-            Isa::available().into_iter().find(|&i| i.rank() <= cap.rank()).unwrap_or(Isa::Portable)
-        })
-    }
-
-    /// Every level this CPU can run, best first.
-    pub(crate) fn available() -> Vec<Isa> {
-        [Isa::Avx512, Isa::Avx2, Isa::Portable].into_iter().filter(|i| i.supported()).collect()
-    }
-
-    /// Whether this CPU has the features of the level.
-    pub(crate) fn supported(self) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::is_x86_feature_detected as has;
-            match self {
-                Isa::Avx512 => has!("avx512f") && has!("avx512vl") && has!("avx2") && has!("fma"),
-                Isa::Avx2 => has!("avx2") && has!("fma"),
-                Isa::Portable => true,
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            self == Isa::Portable
-        }
-    }
-
-    fn rank(self) -> u8 {
-        match self {
-            Isa::Portable => 0,
-            Isa::Avx2 => 1,
-            Isa::Avx512 => 2,
-        }
-    }
-
-    /// Name for reports.
-    pub(crate) fn name(self) -> &'static str {
-        match self {
-            Isa::Avx512 => "avx512",
-            Isa::Avx2 => "avx2",
-            Isa::Portable => "portable",
-        }
-    }
-}
+/// The instruction-set level a pass is compiled for (see [`crate::learn::cpu`]). Only the speed
+/// differs.
+pub(crate) use crate::learn::cpu::Isa;
 
 /// Defines `$name(isa, args…)` running `$body::<Lanes>(args…)` compiled for the level `isa`:
 /// one copy per level, with the matching `target_feature`s, so the generic kernels inline into
@@ -630,9 +567,9 @@ macro_rules! multiversion {
                 // The guards re-check the CPU (a cached load) so no `Isa` value can be unsound.
                 match isa {
                     // SAFETY: the guard checked every feature `avx512` is compiled with.
-                    lanes::Isa::Avx512 if isa.supported() => return unsafe { avx512($($p),*) },
+                    lanes::Isa::Avx512 if isa.runs_mlp() => return unsafe { avx512($($p),*) },
                     // SAFETY: as above.
-                    lanes::Isa::Avx2 if isa.supported() => return unsafe { avx2($($p),*) },
+                    lanes::Isa::Avx2 if isa.runs_mlp() => return unsafe { avx2($($p),*) },
                     _ => {}
                 }
             }

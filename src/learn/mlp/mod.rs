@@ -32,7 +32,7 @@ mod tests;
 pub use net::Shape;
 pub use optim::{EarlyStopping, RmsProp};
 
-use super::{FitInfo, Learner, Regressor, Rows, StopReason, check_training_data};
+use super::{FitInfo, Learner, Regressor, Rows, StopReason, check_training_data, cpu};
 use crate::error::{Error, Result, ensure};
 use crate::rng::{stream, uniform};
 use lanes::{Isa, LANES, V};
@@ -107,7 +107,7 @@ pub struct EpochLoss {
 impl MlpParams {
     /// [`Learner::fit`], also returning the losses of every epoch run.
     pub fn fit_with_losses(&self, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo, Vec<EpochLoss>)> {
-        self.fit_on(Isa::detect(), x, y, seed)
+        self.fit_on(cpu::mlp(), x, y, seed)
     }
 
     /// The fit, with the kernels compiled for `isa` (tests compare them).
@@ -281,7 +281,7 @@ pub fn glorot_init(shape: &Shape, seed: u64) -> Vec<f32> {
 /// exactly what one training batch of these rows computes (for checking against finite
 /// differences).
 pub fn loss_and_gradient(shape: &Shape, params: &[f32], x: &[f32], y: &[f32], grad: &mut [f32]) -> f64 {
-    loss_and_gradient_on(Isa::detect(), shape, params, x, y, grad)
+    loss_and_gradient_on(cpu::mlp(), shape, params, x, y, grad)
 }
 
 fn loss_and_gradient_on(isa: Isa, shape: &Shape, params: &[f32], x: &[f32], y: &[f32], grad: &mut [f32]) -> f64 {
@@ -296,15 +296,16 @@ fn loss_and_gradient_on(isa: Isa, shape: &Shape, params: &[f32], x: &[f32], y: &
     sse / y.len() as f64
 }
 
-/// Which kernel build fits and predictions use on this CPU: `avx512`, `avx2` or `portable`.
+/// Which kernel build fits and predictions use on this CPU: `avx512`, `avx2` or `portable` (the
+/// best it has, capped by the environment variable `BFQI_ISA`; see `learn/cpu.rs`).
 pub fn kernel_isa() -> &'static str {
-    Isa::detect().name()
+    cpu::mlp().name()
 }
 
 /// This core's FP32 peak in GFLOP/s on the kernels' build (independent FMA chains; an FMA is 2
 /// FLOPs per lane), the best of short runs over about `seconds`.
 pub fn fma_peak_gflops(seconds: f64) -> f64 {
-    lanes::fma_peak_gflops(Isa::detect(), seconds)
+    lanes::fma_peak_gflops(cpu::mlp(), seconds)
 }
 
 /// The arithmetic of one training epoch of a network, as the kernels execute it.
@@ -500,10 +501,10 @@ impl Regressor for Mlp {
     }
 
     fn predict_row(&self, row: &[f64]) -> f64 {
-        self.predict_row_on(Isa::detect(), row)
+        self.predict_row_on(cpu::mlp(), row)
     }
 
     fn predict_into(&self, x: Rows<'_>, out: &mut [f64]) {
-        self.predict_into_on(Isa::detect(), x, out)
+        self.predict_into_on(cpu::mlp(), x, out)
     }
 }

@@ -69,7 +69,7 @@ impl<'a> Draws<'a> {
         if self.pos > 0 {
             self.base += self.pos as u128;
         }
-        chacha8(super::Isa::detect(), &self.input, &mut self.buf);
+        chacha8(crate::learn::cpu::mlp(), &self.input, &mut self.buf);
         let block = (self.input[12] as u64 | (self.input[13] as u64) << 32).wrapping_add(BLOCKS as u64);
         self.input[12] = block as u32;
         self.input[13] = (block >> 32) as u32;

@@ -1,0 +1,83 @@
+//! Variance arithmetic (sklearn's `MSE` criterion): a node's mean and variance, and each candidate's
+//! left-side count and target sum, with sums kept in fixed lanes so every kernel adds in one order.
+
+use super::kernels::Kernels;
+use super::splitter::{Candidate, NodeRows};
+
+/// Rows with `x <= t` so far, their target sums in 32 lanes (lane k: rows ≡ k mod 32), and the
+/// total of the lanes once every row is in.
+#[derive(Clone, Copy)]
+pub(super) struct LeftSums {
+    pub(super) lanes: [f64; 32],
+    pub(super) count: usize,
+    pub(super) sum: f64,
+}
+
+impl Default for LeftSums {
+    fn default() -> Self {
+        LeftSums { lanes: [0.0; 32], count: 0, sum: 0.0 }
+    }
+}
+
+/// Rows per sweep step in [`count_sum_left`] (a multiple of 32): the step's targets (16 KiB) stay
+/// in L1 while every candidate's column passes over them.
+const SWEEP: usize = 2048;
+
+/// For each candidate, the rows of the node with `x <= thr` and the sum of their targets, left in
+/// `sums[i].count` and `sums[i].sum`.
+#[inline(always)]
+pub(super) fn count_sum_left<K: Kernels>(k: K, node: NodeRows<'_>, cands: &[Candidate], sums: &mut [LeftSums]) {
+    let NodeRows { x: src_x, n_all, start, ys } = node;
+    let n = ys.len();
+    if K::NODE_SUMS && n <= SWEEP {
+        // One sweep step: each candidate's lanes live in registers and are reduced there, in the
+        // same order as below (most nodes are small, and for them the trip through memory and the
+        // scalar reduction cost more than the counting).
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start..c.feat * n_all + start + n];
+            (s.count, s.sum) = k.count_sum_node(xs, ys, c.thr);
+        }
+        return;
+    }
+    sums.fill(LeftSums::default());
+    let mut a = 0;
+    while a < n {
+        let b = (a + SWEEP).min(n);
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start + a..c.feat * n_all + start + b];
+            k.count_sum_blocks(xs, &ys[a..b], c.thr, s);
+        }
+        a = b;
+    }
+    for s in sums.iter_mut() {
+        s.sum = lanes_total(&s.lanes);
+    }
+}
+
+/// The total of [`LeftSums::lanes`]: lane-wise `(l[j] + l[j+8]) + (l[j+16] + l[j+24])`, then
+/// [`hsum8`] (the order the AVX-512 kernels reduce their registers in).
+#[inline(always)]
+pub(super) fn lanes_total(l: &[f64; 32]) -> f64 {
+    hsum8(std::array::from_fn(|j| (l[j] + l[j + 8]) + (l[j + 16] + l[j + 24])))
+}
+
+/// Sum of 8 lanes in the order of an AVX-512 halving reduction (the same order in every path).
+#[inline(always)]
+pub(super) fn hsum8(v: [f64; 8]) -> f64 {
+    ((v[0] + v[4]) + (v[2] + v[6])) + ((v[1] + v[5]) + (v[3] + v[7]))
+}
+
+/// From the 16 lanes of Σ(y − y0) and Σ(y − y0)² over n rows: the mean and the population variance.
+#[inline(always)]
+pub(super) fn finish_mean_var(y0: f64, s: [f64; 16], q: [f64; 16], n: usize) -> (f64, f64) {
+    let s = hsum8(std::array::from_fn(|j| s[j] + s[j + 8]));
+    let q = hsum8(std::array::from_fn(|j| q[j] + q[j + 8]));
+    mean_var_of_sums(y0, s, q, n)
+}
+
+/// The mean and population variance from the reduced Σ(y − y0) and Σ(y − y0)² over n rows.
+#[inline(always)]
+pub(super) fn mean_var_of_sums(y0: f64, s: f64, q: f64, n: usize) -> (f64, f64) {
+    let m = s / n as f64;
+    (y0 + m, (q / n as f64 - m * m).max(0.0))
+}
