@@ -206,7 +206,10 @@ pub struct SearchArgs {
     #[arg(required_unless_present = "resume")]
     pub env: Option<String>,
     /// Resume the search in this run directory (after Ctrl-C, a crash, kill -9 or a time budget).
-    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "preset", "quick", "prune", "population", "datasets", "iterations", "episodes", "seed", "out"])]
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = [
+        "env", "preset", "quick", "prune", "population", "datasets", "iterations", "episodes", "seed", "out",
+        "seed_config",
+    ])]
     pub resume: Option<PathBuf>,
     /// Overlay a preset (a name under searches/presets/ or a file); repeatable, applied in order.
     #[arg(long)]
@@ -217,37 +220,15 @@ pub struct SearchArgs {
     /// Turn on the spec's opt-in pruning (the `prune` preset; beyond the thesis, see README).
     #[arg(long)]
     pub prune: bool,
-    /// Generations to run.
-    #[arg(long)]
-    pub generations: Option<usize>,
-    /// Individuals per generation.
-    #[arg(long)]
-    pub population: Option<usize>,
-    /// Search datasets per chromosome.
-    #[arg(long)]
-    pub datasets: Option<usize>,
-    /// FQI iterations.
-    #[arg(long)]
-    pub iterations: Option<usize>,
-    /// Episodes per search dataset.
-    #[arg(long)]
-    pub episodes: Option<usize>,
-    /// Master seed.
-    #[arg(long)]
-    pub seed: Option<u64>,
+    /// Overrides of the spec (with --resume, only --generations and --stall-generations).
+    #[command(flatten)]
+    pub overrides: crate::ga::search::SearchOverrides,
     /// Wall-clock budget of this invocation, in hours (stops cleanly; resume later).
     #[arg(long)]
     pub max_hours: Option<f64>,
-    /// Stop after this many generations without improvement.
-    #[arg(long)]
-    pub stall_generations: Option<usize>,
     /// Run directory (default: results/<env>/search-<timestamp>).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Place a given config in generation 0 (`thesis` or a best.json; repeatable), in place of a
-    /// random individual; recorded as `seeded` in generations.jsonl.
-    #[arg(long, value_name = "thesis|FILE", conflicts_with = "resume")]
-    pub seed_config: Vec<String>,
     /// Check the spec, presets and flags and print the resolved spec as JSON, creating nothing.
     #[arg(long, conflicts_with = "resume")]
     pub dry_run: bool,
@@ -264,30 +245,9 @@ pub struct CompareArgs {
     /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
     #[arg(required_unless_present = "resume")]
     pub env: Option<String>,
-    /// Tuned config: `thesis` (the thesis's GA optimum) or a search's best.json.
-    #[arg(long, default_value = "thesis")]
-    pub tuned: String,
-    /// Analysis: iterations, complexity, samples or all.
-    #[arg(long, default_value = "iterations", value_parser = ["iterations", "complexity", "samples", "all"])]
-    pub analysis: String,
-    /// Learner: et, mlp or both.
-    #[arg(long, default_value = "both", value_parser = ["et", "mlp", "both"])]
-    pub learner: String,
-    /// Datasets per point (overrides the spec).
-    #[arg(long)]
-    pub datasets: Option<usize>,
-    /// Episodes per dataset (iterations and complexity analyses).
-    #[arg(long)]
-    pub episodes: Option<usize>,
-    /// FQI iterations K.
-    #[arg(long)]
-    pub iterations: Option<usize>,
-    /// Complexities, as `1..15` or `1,2,5`.
-    #[arg(long)]
-    pub complexities: Option<String>,
-    /// Dataset sizes of the sample analysis, in episodes: `10,25,50`.
-    #[arg(long, value_delimiter = ',')]
-    pub sizes: Option<Vec<usize>>,
+    /// What to compare (ignored with --resume: the run directory has it).
+    #[command(flatten)]
+    pub request: crate::compare::Request,
     /// Run directory (default: results/<env>/compare-<timestamp>).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -558,7 +518,8 @@ fn cmd_envs(a: EnvsArgs) -> Result<ExitCode> {
 fn run_config(a: &RunArgs) -> Result<RunConfig> {
     let (spec, _) = Spec::resolve(&a.env)?;
     let algorithm = if a.algo == "fqi" { Algorithm::Fqi } else { Algorithm::Bfqi };
-    let preset = spec.preset(&a.learner).expect("clap restricts --learner");
+    let learner = if a.learner == "mlp" { crate::spec::LearnerKind::Mlp } else { crate::spec::LearnerKind::Et };
+    let preset = spec.preset(learner);
     let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, algorithm, preset);
     match &mut cfg.learner {
         LearnerConfig::ExtraTrees(p) => {
@@ -701,13 +662,14 @@ fn interrupt_flag() -> &'static AtomicBool {
 }
 
 fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
-    use crate::ga::search::{self, SearchOverrides};
+    use crate::ga::search;
     // Flags are checked before a run directory exists, so a refused command leaves nothing.
     if let Some(h) = a.max_hours {
         anyhow::ensure!(h.is_finite() && h > 0.0, "invalid --max-hours = {h}: must be > 0 and finite");
     }
+    let o = &a.overrides;
     let dir = if let Some(dir) = &a.resume {
-        search::extend(dir, a.generations, a.stall_generations)?;
+        search::extend(dir, o.generations, o.stall_generations)?;
         dir.clone()
     } else {
         let mut presets: Vec<String> = if a.quick { vec!["quick".into()] } else { vec![] };
@@ -715,23 +677,13 @@ fn cmd_search(a: SearchArgs) -> Result<ExitCode> {
             presets.push("prune".into());
         }
         presets.extend(a.preset.iter().cloned());
-        let o = SearchOverrides {
-            generations: a.generations,
-            population: a.population,
-            datasets: a.datasets,
-            iterations: a.iterations,
-            episodes: a.episodes,
-            seed: a.seed,
-            stall_generations: a.stall_generations,
-            seed_config: a.seed_config.clone(),
-        };
         let name = a.env.as_deref().context("give an environment or spec file, or --resume DIR")?;
         if a.dry_run {
-            let (spec, _) = search::resolve(name, &presets, &o)?;
+            let (spec, _) = search::resolve(name, &presets, o)?;
             println!("{}", serde_json::to_string_pretty(&spec)?);
             return Ok(ExitCode::SUCCESS);
         }
-        search::prepare(name, &presets, &o, a.out.as_deref(), Path::new("results"))?
+        search::prepare(name, &presets, o, a.out.as_deref(), Path::new("results"))?
     };
     let max_hours = match a.max_hours {
         Some(h) => Some(h),
@@ -1038,40 +990,14 @@ fn cmd_status(a: StatusArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Parses `1..15` (inclusive) or `1,2,5`.
-fn parse_list(text: &str) -> Result<Vec<usize>> {
-    let bad = || anyhow::anyhow!("invalid --complexities = {text}: must be like 1..15 or 1,2,5 (each ≥ 1)");
-    let v: Vec<usize> = if let Some((a, b)) = text.split_once("..") {
-        let (a, b): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
-        // Checked before the range is collected: 1..10^12 must be refused, not allocated.
-        let points = crate::limits::SWEEP_POINTS;
-        anyhow::ensure!(
-            a <= b && b - a < points,
-            "invalid --complexities = {text}: a range must be lo..hi with at most {points} values"
-        );
-        (a..=b).collect()
-    } else {
-        text.split(',').map(|x| x.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?
-    };
-    anyhow::ensure!(!v.is_empty() && v.iter().all(|&c| c >= 1), bad());
-    Ok(v)
-}
-
 fn cmd_compare(a: CompareArgs) -> Result<ExitCode> {
-    use crate::compare::{self, Overrides};
+    use crate::compare;
     let dir = if let Some(d) = &a.resume {
         compare::load(d)?;
         d.clone()
     } else {
-        let o = Overrides {
-            datasets: a.datasets,
-            episodes: a.episodes,
-            iterations: a.iterations,
-            complexities: a.complexities.as_deref().map(parse_list).transpose()?,
-            sizes: a.sizes.clone(),
-        };
         let name = a.env.as_deref().expect("clap requires ENV without --resume");
-        compare::prepare(name, &a.tuned, &a.analysis, &a.learner, &o, a.out.as_deref(), Path::new("results"))?
+        compare::prepare(name, &a.request, a.out.as_deref(), Path::new("results"))?
     };
     let exec = a.exec.executor(&dir)?;
     let complete = compare::run(&dir, exec.as_ref(), interrupt_flag(), None, a.quiet)?;

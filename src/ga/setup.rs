@@ -19,26 +19,37 @@ pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
     write_json(&dir.join("run.json"), info)
 }
 
-/// Command-line (or batch-plan) overrides of a search spec.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+/// Overrides of a search spec, each of one spec field (see [`resolve`]). Declared once for
+/// `search`'s flags and a batch plan's search jobs, whose fields are the flags' names
+/// (`"stall_generations": 5`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields)]
 pub struct SearchOverrides {
-    /// `search.stop.generations`.
+    /// Generations to run.
+    #[arg(long)]
     pub generations: Option<usize>,
-    /// `search.ga.population`.
+    /// Individuals per generation.
+    #[arg(long)]
     pub population: Option<usize>,
-    /// `search.datasets`.
+    /// Search datasets per chromosome.
+    #[arg(long)]
     pub datasets: Option<usize>,
-    /// `search.iterations`.
+    /// FQI iterations.
+    #[arg(long)]
     pub iterations: Option<usize>,
-    /// `search.episodes`.
+    /// Episodes per search dataset.
+    #[arg(long)]
     pub episodes: Option<usize>,
-    /// `seed`.
+    /// Master seed.
+    #[arg(long)]
     pub seed: Option<u64>,
-    /// `search.stop.stall_generations`.
+    /// Stop after this many generations without improvement.
+    #[arg(long)]
     pub stall_generations: Option<usize>,
-    /// Tuned configs (`thesis` or a best.json) whose settings become `search.seeded`.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    /// Place a given config in generation 0 (`thesis` or a best.json; repeatable), in place of a
+    /// random individual; recorded as `seeded` in generations.jsonl.
+    #[arg(long, value_name = "thesis|FILE")]
+    #[serde(default)]
     pub seed_config: Vec<String>,
 }
 
