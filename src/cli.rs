@@ -8,7 +8,7 @@ use crate::fqi::Algorithm;
 use crate::learn::LearnerConfig;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::Activation;
-use crate::spec::Spec;
+use crate::spec::{LearnerKind, Spec};
 use crate::store;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -74,9 +74,9 @@ pub struct DatasetArgs {
     /// Master seed: the file is dataset INDEX of ROLE under this seed, exactly as runs use it.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Which datasets: `compare` (comparison runs) or `search` (GA fitness). Their seeds are disjoint.
-    #[arg(long, default_value = "compare", value_parser = ["compare", "search"])]
-    pub role: String,
+    /// Which datasets: those of comparison runs or of the GA's fitness. Their seeds are disjoint.
+    #[arg(long, value_enum, default_value_t = dataset::Role::Compare)]
+    pub role: dataset::Role,
     /// Index of the dataset within its role.
     #[arg(long, default_value_t = 0)]
     pub index: usize,
@@ -91,14 +91,14 @@ pub struct RunArgs {
     /// Environment name (uses searches/<ENV>.json) or a spec file.
     pub env: String,
     /// Algorithm.
-    #[arg(long, default_value = "bfqi", value_parser = ["fqi", "bfqi"])]
-    pub algo: String,
+    #[arg(long, value_enum, default_value_t = Algorithm::Bfqi)]
+    pub algo: Algorithm,
     /// Learner (selects the preset).
-    #[arg(long, default_value = "et", value_parser = ["et", "mlp"])]
-    pub learner: String,
+    #[arg(long, value_enum, default_value_t = LearnerKind::Et)]
+    pub learner: LearnerKind,
     /// Action encoding.
-    #[arg(long, value_parser = ["input", "per-action"])]
-    pub actions: Option<String>,
+    #[arg(long, value_enum)]
+    pub actions: Option<ActionEncoding>,
     /// Extra-Trees: number of trees.
     #[arg(long, help_heading = "Extra-Trees")]
     pub trees: Option<usize>,
@@ -115,8 +115,8 @@ pub struct RunArgs {
     #[arg(long, value_delimiter = ',', help_heading = "MLP")]
     pub hidden: Option<Vec<usize>>,
     /// MLP: activation.
-    #[arg(long, value_parser = ["sigmoid", "tanh", "relu"], help_heading = "MLP")]
-    pub activation: Option<String>,
+    #[arg(long, value_enum, help_heading = "MLP")]
+    pub activation: Option<Activation>,
     /// MLP: early-stopping δ_min.
     #[arg(long, allow_negative_numbers = true, help_heading = "MLP")]
     pub delta_min: Option<f64>,
@@ -156,10 +156,9 @@ pub struct RunArgs {
 /// Where units of work run.
 #[derive(Debug, Clone, Args)]
 pub struct ExecArgs {
-    /// `local` (this machine's threads) or `slurm` (one job array per generation or comparison; the
-    /// run directory must be on a file system shared by the nodes).
-    #[arg(long, default_value = "local", value_parser = ["local", "slurm"], help_heading = "Executor")]
-    pub executor: String,
+    /// Where units of work run.
+    #[arg(long, value_enum, default_value_t, help_heading = "Executor")]
+    pub executor: crate::exec::Kind,
     /// Slurm partition.
     #[arg(long, help_heading = "Executor")]
     pub slurm_partition: Option<String>,
@@ -183,7 +182,7 @@ pub struct ExecArgs {
 impl ExecArgs {
     /// The executor for a run directory.
     pub fn executor(&self, dir: &Path) -> crate::Result<Box<dyn crate::exec::Executor>> {
-        if self.executor == "local" {
+        if self.executor == crate::exec::Kind::Local {
             return Ok(Box::new(crate::exec::local::Local));
         }
         let mut s = crate::exec::slurm::Slurm::new(dir)?;
@@ -407,8 +406,8 @@ pub struct StatusArgs {
 #[derive(Debug, Args)]
 pub struct BenchArgs {
     /// What to time.
-    #[arg(value_parser = ["learners", "fqi", "search"])]
-    pub what: String,
+    #[arg(value_enum)]
+    pub what: crate::bench::Target,
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -471,7 +470,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
 fn cmd_dataset(a: DatasetArgs) -> Result<ExitCode> {
     let env = EnvConfig::by_name(&a.env)?;
     anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
-    let seed = dataset_seed(a.seed, &a.role, a.index);
+    let seed = dataset_seed(a.seed, a.role, a.index);
     let d = dataset::collect(env.env(), a.episodes, seed)?;
     d.write_csv(&a.out)?;
     eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
@@ -517,10 +516,7 @@ fn cmd_envs(a: EnvsArgs) -> Result<ExitCode> {
 /// Applies `run`'s flags to a preset. Flags of the other learner are refused, not ignored.
 fn run_config(a: &RunArgs) -> Result<RunConfig> {
     let (spec, _) = Spec::resolve(&a.env)?;
-    let algorithm = if a.algo == "fqi" { Algorithm::Fqi } else { Algorithm::Bfqi };
-    let learner = if a.learner == "mlp" { crate::spec::LearnerKind::Mlp } else { crate::spec::LearnerKind::Et };
-    let preset = spec.preset(learner);
-    let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, algorithm, preset);
+    let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, a.algo, spec.preset(a.learner));
     match &mut cfg.learner {
         LearnerConfig::ExtraTrees(p) => {
             let mlp_flag = [a.hidden.is_some(), a.activation.is_some(), a.delta_min.is_some(), a.patience.is_some()];
@@ -544,17 +540,13 @@ fn run_config(a: &RunArgs) -> Result<RunConfig> {
             if let Some(h) = &a.hidden {
                 p.hidden = h.clone();
             }
-            if let Some(act) = &a.activation {
-                p.activation = serde_json::from_value::<Activation>(serde_json::Value::String(act.clone()))?;
-            }
+            set(&mut p.activation, a.activation);
             set(&mut p.delta_min, a.delta_min);
             set(&mut p.patience, a.patience);
             set(&mut p.learning_rate, a.learning_rate);
         }
     }
-    if let Some(e) = &a.actions {
-        cfg.actions = if e == "input" { ActionEncoding::Input } else { ActionEncoding::PerAction };
-    }
+    set(&mut cfg.actions, a.actions);
     set(&mut cfg.iterations, a.iterations);
     set(&mut cfg.episodes, a.episodes);
     set(&mut cfg.datasets, a.datasets);
@@ -621,9 +613,11 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
 }
 
 fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
-    let figures = match a.what.as_str() {
-        "learners" => crate::bench::learners(a.python.as_deref(), a.json)?,
-        "search" => {
+    use crate::bench::Target;
+    let figures = match a.what {
+        Target::Learners => crate::bench::learners(a.python.as_deref(), a.json)?,
+        Target::Fqi => crate::bench::fqi(a.python.as_deref(), a.json)?,
+        Target::Search => {
             anyhow::ensure!(
                 a.cap_seconds.is_finite() && a.cap_seconds > 0.0,
                 "invalid --cap-seconds = {}: must be > 0",
@@ -637,7 +631,6 @@ fn cmd_bench(a: BenchArgs) -> Result<ExitCode> {
             };
             crate::bench::search(&opts)?
         }
-        _ => crate::bench::fqi(a.python.as_deref(), a.json)?,
     };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&figures)?);

@@ -82,6 +82,25 @@ impl RunConfig {
     }
 }
 
+/// `--actions` reads the spec files' spelling (`per_action`), and `per-action`, the command line's
+/// spelling before. Written out beside the flag rather than derived in `learn`, since the alias
+/// needs attributes on the enum.
+impl clap::ValueEnum for ActionEncoding {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[ActionEncoding::Input, ActionEncoding::PerAction]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        use clap::builder::PossibleValue;
+        Some(match self {
+            ActionEncoding::Input => PossibleValue::new("input").help("One model on [state, action]"),
+            ActionEncoding::PerAction => {
+                PossibleValue::new("per_action").alias("per-action").help("One model per discrete action")
+            }
+        })
+    }
+}
+
 /// The record of one dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DatasetResult {
@@ -134,7 +153,7 @@ pub fn run_dataset_saving(
     progress: impl FnMut(&IterationRecord),
 ) -> Result<DatasetResult> {
     let env = cfg.env.env();
-    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, "compare", index))?;
+    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, dataset::Role::Compare, index))?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
         crate::error::Error::Data(m) => {
             crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))

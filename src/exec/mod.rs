@@ -27,6 +27,17 @@ pub trait Executor: Sync {
 use crate::error::Error;
 use std::path::Path;
 
+/// Which executor (`--executor`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Kind {
+    /// This machine's threads.
+    #[default]
+    Local,
+    /// One job array per generation or comparison; the run directory must be on a file system
+    /// shared by the nodes.
+    Slurm,
+}
+
 /// Builds the executor of a run directory (the Slurm executor needs to know it).
 pub type ExecutorFactory<'a> = dyn Fn(&Path) -> Result<Box<dyn Executor>> + 'a;
 
