@@ -9,5 +9,6 @@ mod reproduce;
 mod runner;
 pub mod search;
 mod setup;
+pub mod status;
 pub mod units;
 pub mod validate;
