@@ -4,12 +4,12 @@
 //!
 //! A plan is `{"jobs": [...]}`; a job is either
 //! `{"name": "s", "search": "bicycle", "presets": [...], "generations": 5, ...}` (any
-//! [`SearchOverrides`] field) or
+//! [`SearchOverrides`] field: the flags of `search`) or
 //! `{"name": "c", "compare": "bicycle", "tuned": "from:s" | "thesis" | "path/best.json",
-//!   "analysis": "iterations", "learner": "et", ...}` (any comparison override). `from:<job>` uses the
-//! best config that search job found.
+//!   "analysis": "iterations", "learner": "et", ...}` (any [`compare::Request`] field: the flags of
+//! `compare`). `from:<job>` uses the best config that search job found.
 
-use crate::compare::{self, Overrides};
+use crate::compare;
 use crate::error::{Error, Result};
 use crate::exec::ExecutorFactory;
 use crate::ga::search::{self, Controls, Ending, SearchOverrides};
@@ -19,104 +19,71 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-/// A search job of a plan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A search job of a plan: `{"name", "search", "presets", ...}` and any [`SearchOverrides`] field.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SearchJob {
     /// Job name (also its directory name).
     pub name: String,
     /// Environment name or spec file.
     pub search: String,
     /// Presets to overlay, in order.
-    #[serde(default)]
     pub presets: Vec<String>,
-    /// Overrides.
-    #[serde(default)]
-    pub generations: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub population: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub datasets: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub iterations: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub episodes: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub seed: Option<u64>,
-    /// Overrides.
-    #[serde(default)]
-    pub stall_generations: Option<usize>,
-    /// Tuned configs placed in generation 0 (`thesis` or a best.json), as `search --seed-config`.
-    #[serde(default)]
-    pub seed_config: Vec<String>,
+    /// Overrides of the spec, as `search`'s flags.
+    #[serde(flatten)]
+    pub overrides: SearchOverrides,
 }
 
-/// A comparison job of a plan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A comparison job of a plan: `{"name", "compare", ...}` and any [`compare::Request`] field
+/// (`tuned` may also be `from:<search job>`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CompareJob {
     /// Job name (also its directory name).
     pub name: String,
     /// Environment name or spec file.
     pub compare: String,
-    /// `thesis`, a best.json path, or `from:<search job>`.
-    #[serde(default = "thesis")]
-    pub tuned: String,
-    /// iterations, complexity, samples or all.
-    #[serde(default = "iterations")]
-    pub analysis: String,
-    /// et, mlp or both.
-    #[serde(default = "both")]
-    pub learner: String,
-    /// Overrides.
-    #[serde(default)]
-    pub datasets: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub episodes: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub iterations: Option<usize>,
-    /// Overrides.
-    #[serde(default)]
-    pub complexities: Option<Vec<usize>>,
-    /// Overrides.
-    #[serde(default)]
-    pub sizes: Option<Vec<usize>>,
+    /// What to compare, as `compare`'s flags.
+    #[serde(flatten)]
+    pub request: compare::Request,
 }
 
-impl SearchJob {
-    /// The job's overrides of its spec.
-    pub fn overrides(&self) -> SearchOverrides {
-        SearchOverrides {
-            generations: self.generations,
-            population: self.population,
-            datasets: self.datasets,
-            iterations: self.iterations,
-            episodes: self.episodes,
-            seed: self.seed,
-            stall_generations: self.stall_generations,
-            seed_config: self.seed_config.clone(),
+impl<'de> Deserialize<'de> for SearchJob {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        struct Own {
+            name: String,
+            search: String,
+            #[serde(default)]
+            presets: Vec<String>,
         }
+        let (own, overrides): (Own, _) = split(d, &["name", "search", "presets"])?;
+        Ok(SearchJob { name: own.name, search: own.search, presets: own.presets, overrides })
     }
 }
 
-impl CompareJob {
-    /// The job's overrides of its spec.
-    pub fn overrides(&self) -> Overrides {
-        Overrides {
-            datasets: self.datasets,
-            episodes: self.episodes,
-            iterations: self.iterations,
-            complexities: self.complexities.clone(),
-            sizes: self.sizes.clone(),
+impl<'de> Deserialize<'de> for CompareJob {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        struct Own {
+            name: String,
+            compare: String,
         }
+        let (own, request): (Own, _) = split(d, &["name", "compare"])?;
+        Ok(CompareJob { name: own.name, compare: own.compare, request })
     }
+}
+
+/// Deserialises a job's own fields (`own`) and the rest (its overrides) from one object, each
+/// keeping the path of a bad field: serde's `flatten` would lose it, and could not refuse an
+/// unknown field.
+fn split<'de, D, O, R>(d: D, own: &[&str]) -> std::result::Result<(O, R), D::Error>
+where
+    D: serde::Deserializer<'de>,
+    O: serde::de::DeserializeOwned,
+    R: serde::de::DeserializeOwned,
+{
+    let mut rest = serde_json::Map::<String, serde_json::Value>::deserialize(d)?;
+    let mine = own.iter().filter_map(|k| rest.remove_entry(*k)).collect();
+    Ok((crate::error::tagged(mine)?, crate::error::tagged(rest)?))
 }
 
 /// Checks that every job of a plan would start: its spec, presets, tuned config and overrides
@@ -125,10 +92,13 @@ impl CompareJob {
 pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
     for (i, job) in plan.jobs.iter().enumerate() {
         let checked = match job {
-            Job::Search(s) => search::resolve(&s.search, &s.presets, &s.overrides()).map(|_| ()),
+            Job::Search(s) => search::resolve(&s.search, &s.presets, &s.overrides).map(|_| ()),
             Job::Compare(c) => {
-                let tuned = if c.tuned.starts_with("from:") { "thesis" } else { c.tuned.as_str() };
-                compare::resolve(&c.compare, tuned, &c.analysis, &c.learner, &c.overrides()).map(|_| ())
+                let mut r = c.request.clone();
+                if r.tuned.starts_with("from:") {
+                    r.tuned = "thesis".into();
+                }
+                compare::resolve(&c.compare, &r).map(|_| ())
             }
         };
         checked.map_err(|e| Error::File {
@@ -139,18 +109,8 @@ pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
     Ok(())
 }
 
-fn thesis() -> String {
-    "thesis".into()
-}
-fn iterations() -> String {
-    "iterations".into()
-}
-fn both() -> String {
-    "both".into()
-}
-
 /// A job.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Job {
     /// A search.
@@ -169,9 +129,8 @@ impl Job {
     }
 }
 
-/// A batch plan.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+/// A batch plan, read only through [`Plan::parse`] (which checks what serde cannot).
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Plan {
     /// Jobs, run in order.
     pub jobs: Vec<Job>,
@@ -211,7 +170,7 @@ impl Plan {
                 return Err(err(format!("{label}: field name: `{n}` is used by an earlier job")));
             }
             let source = match &job {
-                Job::Compare(c) => c.tuned.strip_prefix("from:"),
+                Job::Compare(c) => c.request.tuned.strip_prefix("from:"),
                 Job::Search(_) => None,
             };
             if let Some(src) = source.filter(|src| !out.iter().any(|o| matches!(o, Job::Search(s) if s.name == *src))) {
@@ -311,7 +270,8 @@ fn describe_search(dir: &Path) -> String {
 
 /// Runs (or resumes) the batch in `dir`.
 pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -> Result<BatchEnding> {
-    let plan: Plan = read_json(&dir.join("plan.json"))?;
+    let plan_path = dir.join("plan.json");
+    let plan = Plan::parse(&store::read_input(&plan_path)?, &plan_path)?;
     let mut states: Vec<JobState> = read_json(&dir.join("batch.json"))?;
     let _lock = RunLock::acquire(dir)?;
     let started = Instant::now();
@@ -338,7 +298,7 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
         let outcome: Result<(String, String, String)> = match job {
             Job::Search(s) => (|| {
                 if !job_dir.join("spec.json").is_file() {
-                    search::prepare(&s.search, &s.presets, &s.overrides(), Some(&job_dir), Path::new("results"))?;
+                    search::prepare(&s.search, &s.presets, &s.overrides, Some(&job_dir), Path::new("results"))?;
                 }
                 let controls = Controls { interrupt: c.interrupt, max_hours: remaining, quiet: c.quiet };
                 let exec = make_exec(&job_dir)?;
@@ -349,31 +309,21 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
             })(),
             Job::Compare(cj) => (|| {
                 if !job_dir.join("compare.json").is_file() {
-                    let tuned = match cj.tuned.strip_prefix("from:") {
-                        Some(src) => {
-                            let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
-                            if states[k].state != "finished" {
-                                return Err(Error::File {
-                                    path: dir.join(src),
-                                    message: format!(
-                                        "search job `{src}` has not finished ({}), so it has no tuned config",
-                                        states[k].state
-                                    ),
-                                });
-                            }
-                            dir.join(src).join("best.json").display().to_string()
+                    let mut r = cj.request.clone();
+                    if let Some(src) = r.tuned.strip_prefix("from:") {
+                        let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
+                        if states[k].state != "finished" {
+                            return Err(Error::File {
+                                path: dir.join(src),
+                                message: format!(
+                                    "search job `{src}` has not finished ({}), so it has no tuned config",
+                                    states[k].state
+                                ),
+                            });
                         }
-                        None => cj.tuned.clone(),
-                    };
-                    compare::prepare(
-                        &cj.compare,
-                        &tuned,
-                        &cj.analysis,
-                        &cj.learner,
-                        &cj.overrides(),
-                        Some(&job_dir),
-                        Path::new("results"),
-                    )?;
+                        r.tuned = dir.join(src).join("best.json").display().to_string();
+                    }
+                    compare::prepare(&cj.compare, &r, Some(&job_dir), Path::new("results"))?;
                 }
                 let exec = make_exec(&job_dir)?;
                 if !compare::run(&job_dir, exec.as_ref(), c.interrupt, remaining, c.quiet)? {

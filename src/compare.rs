@@ -16,7 +16,7 @@ use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::MlpParams;
 use crate::progress::Progress;
 use crate::report::claims::ClaimSpec;
-use crate::spec::{Preset, SampleSweep, Spec};
+use crate::spec::{LearnerKind, SampleSweep, Spec};
 use crate::store::{self, RunLock, read_json, write_json};
 use crate::tuned::TunedConfig;
 use serde::{Deserialize, Serialize};
@@ -77,20 +77,115 @@ pub struct CompareConfig {
     pub tuned: TunedConfig,
 }
 
-/// Flags that override the spec's presets.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+/// Which analyses a comparison runs (`--analysis`, a plan's `analysis`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum AnalysisChoice {
+    /// Score and steps against iterations.
+    #[default]
+    Iterations,
+    /// Score against complexity × iteration.
+    Complexity,
+    /// Last-iteration score against dataset size.
+    Samples,
+    /// All three.
+    All,
+}
+
+impl AnalysisChoice {
+    /// The analyses chosen, in report order.
+    pub fn analyses(self) -> Vec<Analysis> {
+        match self {
+            AnalysisChoice::Iterations => vec![Analysis::Iterations],
+            AnalysisChoice::Complexity => vec![Analysis::Complexity],
+            AnalysisChoice::Samples => vec![Analysis::Samples],
+            AnalysisChoice::All => vec![Analysis::Iterations, Analysis::Complexity, Analysis::Samples],
+        }
+    }
+}
+
+/// Which learners a comparison runs (`--learner`, a plan's `learner`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum LearnerChoice {
+    /// Extra-Trees only.
+    Et,
+    /// The MLP only.
+    Mlp,
+    /// Extra-Trees, then the MLP.
+    #[default]
+    Both,
+}
+
+impl LearnerChoice {
+    /// The learners chosen, in report order.
+    pub fn learners(self) -> Vec<LearnerKind> {
+        match self {
+            LearnerChoice::Et => vec![LearnerKind::Et],
+            LearnerChoice::Mlp => vec![LearnerKind::Mlp],
+            LearnerChoice::Both => vec![LearnerKind::Et, LearnerKind::Mlp],
+        }
+    }
+}
+
+/// What a comparison is asked for besides its spec: the tuned config, the analyses, the learners and
+/// overrides of the spec's presets. Declared once for `compare`'s flags and a batch plan's compare
+/// jobs, whose fields are the flags' names (`"analysis": "all"`, `"complexities": [1, 2, 5]`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
 #[serde(deny_unknown_fields)]
-pub struct Overrides {
-    /// Datasets (every analysis).
+pub struct Request {
+    /// Tuned config: `thesis` (the thesis's GA optimum) or a search's best.json.
+    #[arg(long, default_value = "thesis")]
+    #[serde(default = "thesis")]
+    pub tuned: String,
+    /// Which analyses.
+    #[arg(long, value_enum, default_value_t)]
+    #[serde(default)]
+    pub analysis: AnalysisChoice,
+    /// Which learners.
+    #[arg(long, value_enum, default_value_t)]
+    #[serde(default)]
+    pub learner: LearnerChoice,
+    /// Datasets per point (overrides the spec).
+    #[arg(long)]
     pub datasets: Option<usize>,
     /// Episodes per dataset (iterations and complexity analyses).
+    #[arg(long)]
     pub episodes: Option<usize>,
-    /// K.
+    /// FQI iterations K.
+    #[arg(long)]
     pub iterations: Option<usize>,
-    /// Complexities of the complexity analysis.
-    pub complexities: Option<Vec<usize>>,
-    /// Sizes of the sample analysis.
+    /// Complexities, as `1..15` or `1,2,5`.
+    // The full path keeps clap from reading `Vec` as a repeated flag: one value, parsed whole.
+    #[arg(long, value_parser = parse_complexities)]
+    pub complexities: Option<::std::vec::Vec<usize>>,
+    /// Dataset sizes of the sample analysis, in episodes: `10,25,50`.
+    #[arg(long, value_delimiter = ',')]
     pub sizes: Option<Vec<usize>>,
+}
+
+fn thesis() -> String {
+    "thesis".into()
+}
+
+/// Parses `--complexities`: `1..15` (inclusive) or `1,2,5`, each ≥ 1.
+pub fn parse_complexities(text: &str) -> Result<Vec<usize>> {
+    let bad = || Error::Usage("must be like 1..15 or 1,2,5 (each ≥ 1)".into());
+    let v: Vec<usize> = if let Some((a, b)) = text.split_once("..") {
+        let (a, b): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
+        // Checked before the range is collected: 1..10^12 must be refused, not allocated.
+        let points = crate::limits::SWEEP_POINTS;
+        if a > b || b - a >= points {
+            return Err(Error::Usage(format!("a range must be lo..hi with at most {points} values")));
+        }
+        (a..=b).collect()
+    } else {
+        text.split(',').map(|x| x.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?
+    };
+    if v.is_empty() || v.contains(&0) {
+        return Err(bad());
+    }
+    Ok(v)
 }
 
 /// The network of a preset with a tuned config's activation and early stopping.
@@ -110,8 +205,8 @@ impl CompareConfig {
         spec: &Spec,
         tuned: TunedConfig,
         analyses: Vec<Analysis>,
-        learners: &[&str],
-        o: &Overrides,
+        learners: &[LearnerKind],
+        o: &Request,
     ) -> Result<Self> {
         if tuned.env != spec.env.env().name() {
             return Err(Error::invalid(
@@ -121,9 +216,8 @@ impl CompareConfig {
             ));
         }
         let mut plans = Vec::new();
-        for &name in learners {
-            let p: &Preset =
-                spec.preset(name).ok_or_else(|| Error::invalid("learner", name, "must be et, mlp or both"))?;
+        for &kind in learners {
+            let (p, name) = (spec.preset(kind), kind.name());
             let learner = match &p.learner {
                 // The iterations analysis uses the tuned network ([10, 10] in the thesis's bicycle runs).
                 LearnerConfig::Mlp(base) => LearnerConfig::Mlp(tuned_network(base, &tuned, false)),
@@ -285,18 +379,9 @@ pub struct UnitRecord {
 }
 
 /// Resolves spec and tuned config, builds the comparison and creates its run directory (`out`, or
-/// `<results>/<env>/compare-<timestamp>`). `analysis` is iterations, complexity, samples or all;
-/// `learner` et, mlp or both. Returns the directory.
-pub fn prepare(
-    spec_name: &str,
-    tuned: &str,
-    analysis: &str,
-    learner: &str,
-    o: &Overrides,
-    out: Option<&Path>,
-    results: &Path,
-) -> Result<PathBuf> {
-    let (cfg, info) = resolve(spec_name, tuned, analysis, learner, o)?;
+/// `<results>/<env>/compare-<timestamp>`). Returns the directory.
+pub fn prepare(spec_name: &str, r: &Request, out: Option<&Path>, results: &Path) -> Result<PathBuf> {
+    let (cfg, info) = resolve(spec_name, r)?;
     let env = cfg.env.env().name();
     let dir = store::claim_run_dir(out, "compare.json", "a comparison", &results.join(env), "compare-")?;
     create(&dir, &cfg, &info)?;
@@ -304,35 +389,17 @@ pub fn prepare(
 }
 
 /// The configuration and run record a comparison would start with, validated, creating nothing.
-pub fn resolve(
-    spec_name: &str,
-    tuned: &str,
-    analysis: &str,
-    learner: &str,
-    o: &Overrides,
-) -> Result<(CompareConfig, serde_json::Value)> {
-    if let Some(d) = o.datasets {
+pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_json::Value)> {
+    if let Some(d) = r.datasets {
         crate::limits::within("datasets", d, 1, crate::limits::DATASETS)?;
     }
     let (spec, origin) = Spec::resolve(spec_name)?;
     let env = spec.env.env().name().to_string();
-    let (tuned_cfg, tuned_from) = TunedConfig::resolve(tuned, &env)?;
-    let analyses = match analysis {
-        "iterations" => vec![Analysis::Iterations],
-        "complexity" => vec![Analysis::Complexity],
-        "samples" => vec![Analysis::Samples],
-        "all" => vec![Analysis::Iterations, Analysis::Complexity, Analysis::Samples],
-        other => return Err(Error::invalid("analysis", other, "must be iterations, complexity, samples or all")),
-    };
-    let learners: Vec<&str> = match learner {
-        "both" => vec!["et", "mlp"],
-        "et" | "mlp" => vec![learner],
-        other => return Err(Error::invalid("learner", other, "must be et, mlp or both")),
-    };
-    let cfg = CompareConfig::new(&spec, tuned_cfg, analyses, &learners, o)?;
+    let (tuned_cfg, tuned_from) = TunedConfig::resolve(&r.tuned, &env)?;
+    let cfg = CompareConfig::new(&spec, tuned_cfg, r.analysis.analyses(), &r.learner.learners(), r)?;
     let info = serde_json::json!({
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
-        "tuned_source": tuned_from.display().to_string(), "analysis": analysis, "learner": learner,
+        "tuned_source": tuned_from.display().to_string(), "analysis": r.analysis, "learner": r.learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
     });
     Ok((cfg, info))

@@ -148,10 +148,33 @@ fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
     out
 }
 
-/// The seed of dataset `index` of a role (`"search"` or `"compare"`) under a master seed. The roles'
-/// streams are disjoint, so a search never tunes on the datasets a comparison reports.
-pub fn dataset_seed(master: u64, role: &str, index: usize) -> u64 {
-    rng::derive(master, &rng::purpose::dataset(role), &[index as u64])
+/// Which datasets: each role has its own stream (`dataset/<role>`), so a search never tunes on the
+/// datasets a comparison reports, nor validation on either.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Role {
+    /// Comparison runs and `run`.
+    Compare,
+    /// The GA's fitness.
+    Search,
+    /// Re-scoring a search's top settings (`validate`); not offered by `dataset --role`.
+    #[value(skip)]
+    Validation,
+}
+
+impl Role {
+    /// The name in the stream's purpose (and on the command line).
+    pub fn name(self) -> &'static str {
+        match self {
+            Role::Compare => "compare",
+            Role::Search => "search",
+            Role::Validation => "validation",
+        }
+    }
+}
+
+/// The seed of dataset `index` of a role under a master seed.
+pub fn dataset_seed(master: u64, role: Role, index: usize) -> u64 {
+    rng::derive(master, &rng::purpose::dataset(role.name()), &[index as u64])
 }
 
 #[cfg(test)]
@@ -216,7 +239,7 @@ mod tests {
 
     #[test]
     fn roles_get_disjoint_seeds() {
-        let search: Vec<u64> = (0..100).map(|i| dataset_seed(1, "search", i)).collect();
-        assert!((0..100).all(|i| !search.contains(&dataset_seed(1, "compare", i))));
+        let search: Vec<u64> = (0..100).map(|i| dataset_seed(1, Role::Search, i)).collect();
+        assert!((0..100).all(|i| !search.contains(&dataset_seed(1, Role::Compare, i))));
     }
 }

@@ -38,6 +38,10 @@ pub enum Error {
     /// A run failed or a check disagreed (exit 1, where bad input is exit 2).
     #[error("{0}")]
     Failed(String),
+    /// A command line the library refuses as a whole: flags that do not go together, or a value in
+    /// a form it cannot read (worded for the command line).
+    #[error("{0}")]
+    Usage(String),
     /// A spec, config or result file is malformed.
     #[error("{path}: {message}")]
     File {

@@ -6,7 +6,7 @@
 
 use crate::dataset::{self, dataset_seed};
 use crate::env::EnvConfig;
-use crate::error::{Result, ensure};
+use crate::error::{Error, Result, ensure};
 use crate::eval::eval_seed;
 use crate::fqi::{Algorithm, FqiSettings, IterationRecord, RunRecord};
 use crate::learn::LearnerConfig;
@@ -14,7 +14,7 @@ use crate::learn::actions::{ActionEncoding, Encoded};
 use crate::model::{self, Model, ModelInfo};
 use crate::report::stats::{Summary, summarize};
 use crate::rng;
-use crate::spec::Preset;
+use crate::spec::{LearnerKind, Preset, Spec};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -82,6 +82,134 @@ impl RunConfig {
     }
 }
 
+/// `bfqi-ga run`'s settings over a spec's preset: the algorithm, the learner (which selects the
+/// preset) and any setting of the run or of that learner. A flag of the other learner is refused,
+/// not ignored.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
+pub struct RunOverrides {
+    /// Algorithm.
+    #[arg(long = "algo", value_name = "ALGO", value_enum, default_value_t = Algorithm::Bfqi)]
+    pub algorithm: Algorithm,
+    /// Learner (selects the preset).
+    #[arg(long, value_enum, default_value_t = LearnerKind::Et)]
+    pub learner: LearnerKind,
+    /// Action encoding.
+    #[arg(long, value_enum)]
+    pub actions: Option<ActionEncoding>,
+    /// Extra-Trees: number of trees.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub trees: Option<usize>,
+    /// Extra-Trees: maximum depth (edges from the root).
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub depth: Option<usize>,
+    /// Extra-Trees: minimum samples to split a node.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub min_split: Option<usize>,
+    /// Extra-Trees: minimum samples per leaf.
+    #[arg(long, help_heading = "Extra-Trees")]
+    pub min_leaf: Option<usize>,
+    /// MLP: hidden layer widths, e.g. 10,10.
+    #[arg(long, value_delimiter = ',', help_heading = "MLP")]
+    pub hidden: Option<Vec<usize>>,
+    /// MLP: activation.
+    #[arg(long, value_enum, help_heading = "MLP")]
+    pub activation: Option<crate::learn::mlp::Activation>,
+    /// MLP: early-stopping δ_min.
+    #[arg(long, allow_negative_numbers = true, help_heading = "MLP")]
+    pub delta_min: Option<f64>,
+    /// MLP: early-stopping patience.
+    #[arg(long, help_heading = "MLP")]
+    pub patience: Option<usize>,
+    /// MLP: RMSProp learning rate.
+    #[arg(long, allow_negative_numbers = true, help_heading = "MLP")]
+    pub learning_rate: Option<f64>,
+    /// K, the number of iterations.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Episodes per dataset.
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Number of datasets.
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// Master seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Evaluate the greedy policy every E iterations (and at the last).
+    #[arg(long)]
+    pub eval_every: Option<usize>,
+}
+
+impl RunOverrides {
+    /// The run: the preset of the learner in the spec `spec_name` (an environment name or a spec
+    /// file), with these settings over it, validated.
+    pub fn config(&self, spec_name: &str) -> Result<RunConfig> {
+        let (spec, _) = Spec::resolve(spec_name)?;
+        let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, self.algorithm, spec.preset(self.learner));
+        match &mut cfg.learner {
+            LearnerConfig::ExtraTrees(p) => {
+                let mlp_flag = [self.hidden.is_some(), self.activation.is_some(), self.delta_min.is_some()];
+                if mlp_flag.contains(&true) || self.patience.is_some() || self.learning_rate.is_some() {
+                    return Err(Error::Usage(
+                        "--hidden/--activation/--delta-min/--patience/--learning-rate apply to --learner mlp".into(),
+                    ));
+                }
+                set(&mut p.n_trees, self.trees);
+                if let Some(d) = self.depth {
+                    p.max_depth = Some(d);
+                }
+                set(&mut p.min_samples_split, self.min_split);
+                set(&mut p.min_samples_leaf, self.min_leaf);
+            }
+            LearnerConfig::Mlp(p) => {
+                if [self.trees, self.depth, self.min_split, self.min_leaf].iter().any(Option::is_some) {
+                    return Err(Error::Usage("--trees/--depth/--min-split/--min-leaf apply to --learner et".into()));
+                }
+                if let Some(h) = &self.hidden {
+                    p.hidden = h.clone();
+                }
+                set(&mut p.activation, self.activation);
+                set(&mut p.delta_min, self.delta_min);
+                set(&mut p.patience, self.patience);
+                set(&mut p.learning_rate, self.learning_rate);
+            }
+        }
+        set(&mut cfg.actions, self.actions);
+        set(&mut cfg.iterations, self.iterations);
+        set(&mut cfg.episodes, self.episodes);
+        set(&mut cfg.datasets, self.datasets);
+        set(&mut cfg.seed, self.seed);
+        set(&mut cfg.eval_every, self.eval_every);
+        cfg.validate().map_err(|e| Error::Usage(format!("{e} (from the flags or {spec_name})")))?;
+        Ok(cfg)
+    }
+}
+
+fn set<T>(slot: &mut T, v: Option<T>) {
+    if let Some(v) = v {
+        *slot = v;
+    }
+}
+
+/// `--actions` reads the spec files' spelling (`per_action`), and `per-action`, the command line's
+/// spelling before. Written out beside the flag rather than derived in `learn`, since the alias
+/// needs attributes on the enum.
+impl clap::ValueEnum for ActionEncoding {
+    fn value_variants<'a>() -> &'a [Self] {
+        &[ActionEncoding::Input, ActionEncoding::PerAction]
+    }
+
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        use clap::builder::PossibleValue;
+        Some(match self {
+            ActionEncoding::Input => PossibleValue::new("input").help("One model on [state, action]"),
+            ActionEncoding::PerAction => {
+                PossibleValue::new("per_action").alias("per-action").help("One model per discrete action")
+            }
+        })
+    }
+}
+
 /// The record of one dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DatasetResult {
@@ -134,7 +262,7 @@ pub fn run_dataset_saving(
     progress: impl FnMut(&IterationRecord),
 ) -> Result<DatasetResult> {
     let env = cfg.env.env();
-    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, "compare", index))?;
+    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, dataset::Role::Compare, index))?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
         crate::error::Error::Data(m) => {
             crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))

@@ -6,6 +6,7 @@
 pub mod batch;
 pub mod bench;
 pub mod cli;
+pub mod clock;
 pub mod compare;
 pub mod dataset;
 pub mod env;

@@ -1,6 +1,7 @@
-//! The `bfqi-ga` binary: parse arguments, call the library, map errors to exit codes
-//! (0 success, 1 a run failed or a check disagreed, 2 bad input).
+//! The `bfqi-ga` binary: parse arguments, call the library, and decide the exit code of every
+//! ending (0 success, 1 a run failed or a check disagreed, 2 bad input, 130 stopped by Ctrl-C).
 
+use bfqi_ga::cli::Outcome;
 use clap::Parser;
 use std::process::ExitCode;
 
@@ -23,7 +24,10 @@ fn main() -> ExitCode {
         }
     };
     match bfqi_ga::cli::run(cli) {
-        Ok(code) => code,
+        Ok(Outcome::Success) => ExitCode::SUCCESS,
+        Ok(Outcome::Failed) => ExitCode::from(1),
+        // 128 + SIGINT, as a shell reports a command Ctrl-C ended.
+        Ok(Outcome::Interrupted) => ExitCode::from(130),
         Err(e) => {
             // One line: the chain of contexts, outermost first.
             eprintln!("error: {e:#}");

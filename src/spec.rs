@@ -120,6 +120,27 @@ pub struct Experiments {
     pub mlp: Preset,
 }
 
+/// A learner family, as the spec's presets (`experiments.et`, `experiments.mlp`) and `--learner`
+/// name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum LearnerKind {
+    /// Extra-Trees.
+    Et,
+    /// The multilayer perceptron.
+    Mlp,
+}
+
+impl LearnerKind {
+    /// The name used in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            LearnerKind::Et => "et",
+            LearnerKind::Mlp => "mlp",
+        }
+    }
+}
+
 /// When a search stops.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -372,12 +393,11 @@ impl Spec {
         Ok((Self::from_value(value, &origin)?, origin))
     }
 
-    /// The preset of a learner (`et` or `mlp`).
-    pub fn preset(&self, learner: &str) -> Option<&Preset> {
+    /// The preset of a learner.
+    pub fn preset(&self, learner: LearnerKind) -> &Preset {
         match learner {
-            "et" => Some(&self.experiments.et),
-            "mlp" => Some(&self.experiments.mlp),
-            _ => None,
+            LearnerKind::Et => &self.experiments.et,
+            LearnerKind::Mlp => &self.experiments.mlp,
         }
     }
 }

@@ -184,7 +184,7 @@ fn flags_and_every_job_of_a_plan_are_checked_before_anything_is_created() {
         r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick"]},
                      {"name": "c", "compare": "cartpole", "tuned": "from:s", "analysis": "bogus"}]}"#,
     );
-    refused(&d, &["batch", &plan], &["plan.json: job 2 (c): invalid analysis = bogus"]);
+    refused(&d, &["batch", &plan], &["plan.json: job 2 (c): field analysis: unknown variant `bogus`"]);
     let plan2 = write(&d, "plan2.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "population": 1}]}"#);
     refused(&d, &["batch", &plan2], &["plan2.json: job 1 (s)", "search.ga.population = 1"]);
     let ok_plan = write(&d, "ok.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick"]}]}"#);

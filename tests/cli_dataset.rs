@@ -43,7 +43,9 @@ fn csv_has_the_documented_schema_and_round_trips_floats() {
     assert_eq!(rows.len(), 400);
     // The CSV must hold exactly the in-memory dataset.
     let env = bfqi_ga::env::EnvConfig::by_name("pendulum").unwrap();
-    let d = bfqi_ga::dataset::collect(env.env(), 2, bfqi_ga::dataset::dataset_seed(1, "compare", 0)).unwrap();
+    let d =
+        bfqi_ga::dataset::collect(env.env(), 2, bfqi_ga::dataset::dataset_seed(1, bfqi_ga::dataset::Role::Compare, 0))
+            .unwrap();
     for (i, r) in rows.iter().enumerate() {
         assert_eq!(r[2].parse::<f64>().unwrap(), d.state[i * 3]);
         assert_eq!(r[5].parse::<f64>().unwrap(), d.action[i]);

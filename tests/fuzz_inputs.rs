@@ -93,7 +93,12 @@ fn mutate(text: &str, rng: &mut Rng) -> String {
         }
         4 => {
             let s = v.to_string();
-            s[..rng.below(s.len())].to_string()
+            // Cut on a character boundary: the documents hold non-ASCII text (the claims' dashes).
+            let mut cut = rng.below(s.len());
+            while !s.is_char_boundary(cut) {
+                cut -= 1;
+            }
+            s[..cut].to_string()
         }
         5 => {
             // Duplicate the first key of the top-level object.

@@ -26,6 +26,17 @@ use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// What `bench` times.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Target {
+    /// The Extra-Trees and the MLP on simulator data.
+    Learners,
+    /// Whole FQI / B-FQI runs with Extra-Trees.
+    Fqi,
+    /// Search units at the default specs, and a whole search's projected time.
+    Search,
+}
+
 /// The reference scripts, by file name (the copies in `scripts/`).
 const SCRIPTS: [(&str, &str); 4] = [
     ("sklearn_et.py", include_str!("../../scripts/sklearn_et.py")),
@@ -104,6 +115,6 @@ fn rows_input(d: &Dataset) -> Vec<f64> {
 
 fn data(env: &str, episodes: usize) -> Result<(EnvConfig, Dataset)> {
     let c = EnvConfig::by_name(env)?;
-    let d = dataset::collect(c.env(), episodes, dataset_seed(1, "compare", 0))?;
+    let d = dataset::collect(c.env(), episodes, dataset_seed(1, dataset::Role::Compare, 0))?;
     Ok((c, d))
 }

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::spec::Spec;
 use crate::tuned::TunedConfig;
 use rayon::prelude::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A setting scored on a spec's search datasets.
 #[derive(Debug, Clone, PartialEq)]
@@ -98,5 +98,57 @@ pub fn train(spec: &Spec, t: &TunedConfig, origin: &Path, d: usize) -> Result<(U
             "{} diverged on search dataset {d}: there is no policy to look at",
             crate::ga::search::describe(&unit.setting)
         ))),
+    }
+}
+
+/// A tuned config to train as its search unit on a search dataset did (`rollout --tuned`).
+#[derive(Debug, Clone)]
+pub struct TunedUnit {
+    /// The spec whose search fitness trains it.
+    pub spec: Spec,
+    /// The tuned config.
+    pub tuned: TunedConfig,
+    /// Where the tuned config came from.
+    pub from: PathBuf,
+}
+
+impl TunedUnit {
+    /// Resolves `tuned` (`thesis` or a best.json) and its spec: `target` (an environment name or a
+    /// spec file), else the spec a best.json records.
+    pub fn resolve(target: Option<&str>, tuned: &str) -> Result<TunedUnit> {
+        let recorded = if tuned == "thesis" { None } else { TunedConfig::load(Path::new(tuned))?.spec };
+        let spec = match (target, recorded) {
+            (Some(t), _) => Spec::resolve(t)?.0,
+            (None, Some(spec)) => spec,
+            (None, None) => {
+                return Err(Error::Usage(format!(
+                    "give the environment or spec: bfqi-ga rollout <ENV|SPEC> --tuned {tuned}"
+                )));
+            }
+        };
+        let (tuned, from) = TunedConfig::resolve(tuned, spec.env.env().name())?;
+        Ok(TunedUnit { spec, tuned, from })
+    }
+
+    /// What training on search dataset `d` does, for the line printed before it.
+    pub fn describe(&self, d: usize) -> String {
+        format!(
+            "training {} on search dataset {d} as its search unit did ({} K={})…",
+            super::search::describe(&setting_of(&self.tuned)),
+            self.spec.search.algorithm.name(),
+            self.spec.search.iterations
+        )
+    }
+
+    /// Trains it on search dataset `d` ([`train`]), saving the Q-function to `save` when given.
+    pub fn train(&self, d: usize, save: Option<&Path>) -> Result<crate::model::Model> {
+        let (_, m) = train(&self.spec, &self.tuned, &self.from, d)?;
+        if let Some(p) = save {
+            if let Some(parent) = p.parent().filter(|dir| !dir.as_os_str().is_empty()) {
+                crate::store::create_dir(parent)?;
+            }
+            crate::model::save(p, &m)?;
+        }
+        Ok(m)
     }
 }

@@ -140,6 +140,13 @@ impl Role {
             Role::Validation => "validation",
         }
     }
+    /// The role of its datasets' stream.
+    fn datasets(self) -> dataset::Role {
+        match self {
+            Role::Search => dataset::Role::Search,
+            Role::Validation => dataset::Role::Validation,
+        }
+    }
     fn init_purpose(self) -> &'static str {
         match self {
             Role::Search => crate::rng::purpose::INIT,
@@ -194,7 +201,7 @@ impl Evaluator {
         }
         let env = self.spec.env.env();
         let s = &self.spec.search;
-        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, self.role.name(), d))?;
+        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, self.role.datasets(), d))?;
         let enc = Encoded::new(&data, env.actions(), s.actions).map_err(|e| match e {
             // An action missing from a tiny dataset is the episode count's doing.
             Error::Data(m) => Error::invalid(

@@ -32,6 +32,22 @@ pub struct ValidateRule {
 }
 
 impl ValidateRule {
+    /// The rule `validate` applies to the search in `dir`: its spec's `search.validate`, with
+    /// `top` and `datasets` given in its place; both are needed when the spec has none.
+    pub fn for_search(dir: &Path, top: Option<usize>, datasets: Option<usize>) -> Result<ValidateRule> {
+        let spec = super::search::load_spec(dir)?;
+        match (&spec.search.validate, top, datasets) {
+            (_, Some(top), Some(datasets)) => Ok(ValidateRule { top, datasets }),
+            (Some(r), top, datasets) => {
+                Ok(ValidateRule { top: top.unwrap_or(r.top), datasets: datasets.unwrap_or(r.datasets) })
+            }
+            (None, _, _) => Err(crate::error::Error::Usage(format!(
+                "{}: its spec has no search.validate; give both --top and --datasets (e.g. --top 5 --datasets 10)",
+                dir.join("spec.json").display()
+            ))),
+        }
+    }
+
     /// Validates the rule; errors name the field.
     pub fn validate(&self) -> Result<()> {
         ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;

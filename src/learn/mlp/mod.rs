@@ -41,7 +41,7 @@ use serde::{Deserialize, Serialize};
 use shuffle::shuffle;
 
 /// Hidden-layer activation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Activation {
     /// Logistic `1 / (1 + e^−x)`.

@@ -1,0 +1,277 @@
+//! The long jobs and their run directories: `search`, `compare`, `batch`, `validate`, `status`,
+//! `report`.
+
+use super::{Outcome, stopped};
+use crate::compare;
+use crate::exec::{self, interrupt_flag};
+use crate::ga::search::{self, SearchOverrides};
+use anyhow::{Context, Result};
+use clap::Args;
+use std::path::{Path, PathBuf};
+
+/// `bfqi-ga search`.
+#[derive(Debug, Args)]
+pub struct SearchArgs {
+    #[command(flatten)]
+    pub exec: exec::Options,
+    /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub env: Option<String>,
+    /// Resume the search in this run directory (after Ctrl-C, a crash, kill -9 or a time budget).
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = [
+        "env", "preset", "quick", "prune", "population", "datasets", "iterations", "episodes", "seed", "out",
+        "seed_config",
+    ])]
+    pub resume: Option<PathBuf>,
+    /// Overlay a preset (a name under searches/presets/ or a file); repeatable, applied in order.
+    #[arg(long)]
+    pub preset: Vec<String>,
+    /// A small, real search (the `quick` preset) for trying the tool: a few seconds on 2 cores.
+    #[arg(long)]
+    pub quick: bool,
+    /// Turn on the spec's opt-in pruning (the `prune` preset; beyond the thesis, see README).
+    #[arg(long)]
+    pub prune: bool,
+    /// Overrides of the spec (with --resume, only --generations and --stall-generations).
+    #[command(flatten)]
+    pub overrides: SearchOverrides,
+    /// Wall-clock budget of this invocation, in hours (stops cleanly; resume later).
+    #[arg(long)]
+    pub max_hours: Option<f64>,
+    /// Run directory (default: results/<env>/search-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Check the spec, presets and flags and print the resolved spec as JSON, creating nothing.
+    #[arg(long, conflicts_with = "resume")]
+    pub dry_run: bool,
+    /// No progress output (the run directory still records everything).
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    pub exec: exec::Options,
+    /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub env: Option<String>,
+    /// What to compare (ignored with --resume: the run directory has it).
+    #[command(flatten)]
+    pub request: compare::Request,
+    /// Run directory (default: results/<env>/compare-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Resume the comparison in this run directory.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "out"])]
+    pub resume: Option<PathBuf>,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga batch`.
+#[derive(Debug, Args)]
+pub struct BatchArgs {
+    #[command(flatten)]
+    pub exec: exec::Options,
+    /// The plan (e.g. searches/batches/overnight.json). Not needed with --resume.
+    #[arg(required_unless_present = "resume")]
+    pub plan: Option<PathBuf>,
+    /// Resume the batch in this directory.
+    #[arg(long, value_name = "BATCH_DIR", conflicts_with_all = ["plan", "out"])]
+    pub resume: Option<PathBuf>,
+    /// Wall-clock budget of this invocation, in hours; stops cleanly between units.
+    #[arg(long, conflicts_with = "until")]
+    pub max_hours: Option<f64>,
+    /// Stop cleanly at this local time, HH:MM (the next time it comes round).
+    #[arg(long)]
+    pub until: Option<String>,
+    /// Batch directory (default: results/batches/<plan>-<timestamp>).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Check the plan (every job's spec, presets, tuned config and overrides) and list its jobs,
+    /// creating nothing.
+    #[arg(long, conflicts_with = "resume")]
+    pub dry_run: bool,
+    /// No progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga validate`.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// A search's run directory (at least one generation done).
+    pub dir: PathBuf,
+    /// Settings of the hall of fame to re-score (default: the spec's `search.validate.top`).
+    #[arg(long)]
+    pub top: Option<usize>,
+    /// Validation datasets (default: the spec's `search.validate.datasets`).
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// Suppress progress output.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `bfqi-ga status`.
+#[derive(Debug, Args)]
+pub struct StatusArgs {
+    /// Folder to scan (default: results).
+    #[arg(default_value = "results")]
+    pub dir: PathBuf,
+}
+
+/// `bfqi-ga report`.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// A comparison or search run directory.
+    pub dir: PathBuf,
+}
+
+pub(super) fn search(a: SearchArgs) -> Result<Outcome> {
+    // Flags are checked before a run directory exists, so a refused command leaves nothing.
+    let budget = a.max_hours.map(crate::clock::check_hours).transpose()?;
+    let o = &a.overrides;
+    let dir = if let Some(dir) = &a.resume {
+        search::extend(dir, o.generations, o.stall_generations)?;
+        dir.clone()
+    } else {
+        let mut presets: Vec<String> = if a.quick { vec!["quick".into()] } else { vec![] };
+        if a.prune {
+            presets.push("prune".into());
+        }
+        presets.extend(a.preset.iter().cloned());
+        let name = a.env.as_deref().context("give an environment or spec file, or --resume DIR")?;
+        if a.dry_run {
+            let (spec, _) = search::resolve(name, &presets, o)?;
+            println!("{}", serde_json::to_string_pretty(&spec)?);
+            return Ok(Outcome::Success);
+        }
+        search::prepare(name, &presets, o, a.out.as_deref(), Path::new("results"))?
+    };
+    let max_hours = match budget {
+        Some(h) => Some(h),
+        None => search::load_spec(&dir)?.search.stop.max_hours,
+    };
+    let controls = search::Controls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
+    let exec = a.exec.executor(&dir)?;
+    match search::run(&dir, exec.as_ref(), &controls)? {
+        search::Ending::Finished(reason) => {
+            eprintln!("finished ({reason}): {}", dir.display());
+            eprintln!("tuned config: {}", dir.join("best.json").display());
+            Ok(Outcome::Success)
+        }
+        search::Ending::Interrupted(reason) => {
+            eprintln!("stopped ({reason}): resume with  bfqi-ga search --resume {}", dir.display());
+            Ok(stopped())
+        }
+    }
+}
+
+pub(super) fn compare(a: CompareArgs) -> Result<Outcome> {
+    let dir = if let Some(d) = &a.resume {
+        compare::load(d)?;
+        d.clone()
+    } else {
+        let name = a.env.as_deref().expect("clap requires ENV without --resume");
+        compare::prepare(name, &a.request, a.out.as_deref(), Path::new("results"))?
+    };
+    let exec = a.exec.executor(&dir)?;
+    if !compare::run(&dir, exec.as_ref(), interrupt_flag(), None, a.quiet)? {
+        eprintln!("stopped: resume with  bfqi-ga compare --resume {}", dir.display());
+        return Ok(Outcome::Interrupted);
+    }
+    let out = crate::report::comparison::regenerate(&dir)?;
+    for c in &out.claims {
+        let mark = if c.verdict == crate::report::claims::Verdict::Supported { "supported" } else { "NOT supported" };
+        eprintln!("claim {mark}: {} ({})", c.statement, c.evidence);
+    }
+    eprintln!("report: {}", dir.join("report.md").display());
+    Ok(Outcome::Success)
+}
+
+pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
+    use crate::batch::{self, BatchControls, BatchEnding, Job, Plan};
+    // The budget is checked before the batch directory exists.
+    let max_hours = crate::clock::budget(a.max_hours, a.until.as_deref())?;
+    if let (true, Some(plan)) = (a.dry_run, &a.plan) {
+        let p = Plan::parse(&crate::store::read_input(plan)?, plan)?;
+        batch::check(&p, plan)?;
+        for (i, j) in p.jobs.iter().enumerate() {
+            let kind = if matches!(j, Job::Search(_)) { "search" } else { "compare" };
+            println!("job {}: {} ({kind}) ok", i + 1, j.name());
+        }
+        return Ok(Outcome::Success);
+    }
+    let dir = match (&a.resume, &a.plan) {
+        (Some(d), _) => d.clone(),
+        (None, Some(plan)) => batch::create(plan, Path::new("results"), a.out.as_deref())?,
+        (None, None) => anyhow::bail!("give a plan file, or --resume DIR"),
+    };
+    if !a.quiet {
+        eprintln!("batch → {}", dir.display());
+    }
+    let controls = BatchControls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
+    let ending = batch::run(&dir, &|d: &Path| a.exec.executor(d), &controls)?;
+    eprintln!("summary: {}", dir.join("summary.md").display());
+    match ending {
+        BatchEnding::Done { failed: 0 } => Ok(Outcome::Success),
+        BatchEnding::Done { failed } => {
+            eprintln!("{failed} job(s) failed (see the summary)");
+            Ok(Outcome::Failed)
+        }
+        BatchEnding::Stopped(reason) => {
+            eprintln!("stopped ({reason}): resume with  bfqi-ga batch --resume {}", dir.display());
+            Ok(stopped())
+        }
+    }
+}
+
+pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
+    use crate::ga::validate::{self, ValidateRule};
+    let rule = ValidateRule::for_search(&a.dir, a.top, a.datasets)?;
+    let v = validate::run_alone(&a.dir, &rule, a.quiet)?;
+    let ci = |s: &Option<crate::report::stats::Summary>| crate::report::stats::interval(*s, 4);
+    println!("{:<22} {:<24} {:>20} {:>20}", "", "setting", "search datasets", "validation");
+    for e in &v.entries {
+        let tag = if e.setting == v.tuned { format!("{} (tuned)", e.source) } else { e.source.clone() };
+        println!("{:<22} {:<24} {:>20} {:>20}", tag, e.setting, ci(&e.search), ci(&e.validation));
+    }
+    println!("{}", v.note);
+    Ok(Outcome::Success)
+}
+
+pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
+    use crate::ga::status;
+    let dirs = status::find_runs(&a.dir);
+    if dirs.is_empty() {
+        println!("no runs under {}", a.dir.display());
+    }
+    for d in dirs {
+        match status::line(&d) {
+            Ok(line) => println!("{line}"),
+            // One damaged run must not hide the others.
+            Err(e) => eprintln!("warning: skipped {e}"),
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn report(a: ReportArgs) -> Result<Outcome> {
+    if a.dir.join("compare.json").is_file() {
+        let out = crate::report::comparison::regenerate(&a.dir)?;
+        eprintln!("wrote {} files into {}", out.files.len(), a.dir.display());
+    } else if a.dir.join("spec.json").is_file() {
+        let n = crate::report::search::write(&a.dir)?;
+        eprintln!(
+            "wrote fitness.csv, fitness.png, fitness.svg and report.md for {n} generations into {}",
+            a.dir.display()
+        );
+    } else {
+        anyhow::bail!("{}: not a comparison or search run directory (no compare.json or spec.json)", a.dir.display());
+    }
+    Ok(Outcome::Success)
+}

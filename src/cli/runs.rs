@@ -1,0 +1,210 @@
+//! Single runs and tools: `run`, `dataset`, `envs`, `bench`, and `worker` (a Slurm task).
+
+use super::Outcome;
+use crate::dataset::{self, Role, dataset_seed};
+use crate::env::{EnvConfig, NAMES};
+use crate::experiment::{self, RunOverrides};
+use anyhow::{Context, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+/// `bfqi-ga dataset`.
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// Environment: pendulum, cartpole or bicycle.
+    pub env: String,
+    /// Number of random-policy episodes.
+    #[arg(long)]
+    pub episodes: usize,
+    /// Master seed: the file is dataset INDEX of ROLE under this seed, exactly as runs use it.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Which datasets: those of comparison runs or of the GA's fitness. Their seeds are disjoint.
+    #[arg(long, value_enum, default_value_t = Role::Compare)]
+    pub role: Role,
+    /// Index of the dataset within its role.
+    #[arg(long, default_value_t = 0)]
+    pub index: usize,
+    /// Output CSV (written atomically).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `bfqi-ga run`: presets come from the spec file's `experiments.<learner>`; flags override them.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// Environment name (uses searches/<ENV>.json) or a spec file.
+    pub env: String,
+    #[command(flatten)]
+    pub overrides: RunOverrides,
+    /// Print one JSON document (every record and the summary) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write run.json and run.csv into this directory (atomically).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Save each dataset's last Q-function into this directory (`dataset-<i>.model`), for
+    /// `rollout` and `evaluate`.
+    #[arg(long, value_name = "DIR")]
+    pub save_model: Option<PathBuf>,
+}
+
+/// `bfqi-ga bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// What to time.
+    #[arg(value_enum)]
+    pub what: crate::bench::Target,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// A Python to run the reference side by side (`learners`: scikit-learn, keras and jax;
+    /// `fqi`: scikit-learn; `search`: keras and jax). The scripts are built into the binary.
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// `search`: one environment name or spec file (default: all three, at their default specs).
+    #[arg(long)]
+    pub env: Option<String>,
+    /// `search`: seconds after which a timed unit stops (after its FQI iteration under way); the
+    /// unit's time is then projected from the iterations it ran.
+    #[arg(long, default_value_t = 20.0)]
+    pub cap_seconds: f64,
+}
+
+/// `bfqi-ga envs`.
+#[derive(Debug, Args)]
+pub struct EnvsArgs {
+    /// Print the full settings as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `bfqi-ga worker`.
+#[derive(Debug, Args)]
+pub struct WorkerArgs {
+    /// The run directory (on a shared file system).
+    pub dir: PathBuf,
+    /// The unit id (its result file stem).
+    pub unit: String,
+}
+
+pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
+    let env = EnvConfig::by_name(&a.env)?;
+    anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    let d = dataset::collect(env.env(), a.episodes, dataset_seed(a.seed, a.role, a.index))?;
+    d.write_csv(&a.out)?;
+    eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
+    Ok(Outcome::Success)
+}
+
+pub(super) fn envs(a: EnvsArgs) -> Result<Outcome> {
+    let all: Vec<EnvConfig> = NAMES.iter().map(|n| EnvConfig::by_name(n)).collect::<Result<_, _>>()?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&all)?);
+        return Ok(Outcome::Success);
+    }
+    for c in &all {
+        let e = c.env();
+        let p = e.eval();
+        println!("{}", e.name());
+        println!(
+            "  observation {} values, actions {:?}, gamma {}, dataset horizon {}",
+            e.obs_dim(),
+            e.actions(),
+            e.gamma(),
+            e.horizon()
+        );
+        println!(
+            "  evaluation: {} episode(s) × {} steps, score {}",
+            p.episodes,
+            p.steps,
+            serde_json::to_value(p.score)?
+        );
+        let json = serde_json::to_value(c)?;
+        let settings: Vec<String> = json
+            .as_object()
+            .into_iter()
+            .flatten()
+            .filter(|(k, _)| !matches!(k.as_str(), "name" | "eval" | "actions"))
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        println!("  settings: {}", settings.join(" "));
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn run(a: RunArgs) -> Result<Outcome> {
+    let cfg = a.overrides.config(&a.env)?;
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let bar = indicatif::ProgressBar::new((cfg.datasets * cfg.iterations) as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} iterations  ETA {eta}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    if let Some(dir) = &a.save_model {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let report = experiment::run_saving(&cfg, a.save_model.as_deref(), &|_, _| bar.inc(1))?;
+    bar.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        let l = &cfg.learner;
+        println!(
+            "{} · {} · {} (complexity {}) · {:?} actions · K={} · {} datasets × {} episodes · seed {}",
+            cfg.env.env().name(),
+            cfg.algorithm.name(),
+            l.short(),
+            l.complexity().map_or("unbounded".into(), |c| c.to_string()),
+            cfg.actions,
+            cfg.iterations,
+            cfg.datasets,
+            cfg.episodes,
+            cfg.seed
+        );
+        print!("{}", report.table());
+    }
+    if let Some(dir) = &a.out {
+        crate::store::write_json(&dir.join("run.json"), &report)?;
+        let csv = report.csv();
+        crate::store::write_atomic(&dir.join("run.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
+        eprintln!("wrote {}", dir.display());
+    }
+    if let Some(dir) = &a.save_model {
+        eprintln!("models: {}", experiment::model_path(dir, 0).with_file_name("dataset-<i>.model").display());
+    }
+    let diverged = report.datasets.iter().filter(|d| d.record.diverged.is_some()).count();
+    if diverged > 0 {
+        eprintln!("{diverged} of {} datasets diverged (recorded in the results)", cfg.datasets);
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
+    use crate::bench::{self, Target};
+    let figures = match a.what {
+        Target::Learners => bench::learners(a.python.as_deref(), a.json)?,
+        Target::Fqi => bench::fqi(a.python.as_deref(), a.json)?,
+        Target::Search => {
+            anyhow::ensure!(
+                a.cap_seconds.is_finite() && a.cap_seconds > 0.0,
+                "invalid --cap-seconds = {}: must be > 0",
+                a.cap_seconds
+            );
+            let opts = bench::SearchBench { env: a.env, python: a.python, cap_seconds: a.cap_seconds, json: a.json };
+            bench::search(&opts)?
+        }
+    };
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&figures)?);
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn worker(a: WorkerArgs) -> Result<Outcome> {
+    crate::exec::worker(&a.dir, &a.unit)?;
+    Ok(Outcome::Success)
+}

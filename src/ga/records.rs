@@ -1,0 +1,188 @@
+//! The files a search writes about itself: `run.json` ([`RunInfo`]), `generations.jsonl`
+//! ([`GenerationRecord`] lines) and `state.json` ([`RunState`]).
+
+use super::chromosome::{Chromosome, Decoded};
+use super::operators::Birth;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// What was asked for, saved as `run.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// `search`.
+    pub kind: String,
+    /// Environment name.
+    pub env: String,
+    /// Where the spec came from.
+    pub spec_source: String,
+    /// Presets applied on top of it, in order.
+    pub presets: Vec<String>,
+    /// Command-line overrides, by spec field.
+    pub overrides: BTreeMap<String, serde_json::Value>,
+    /// When the run was created (UTC).
+    pub created: String,
+    /// bfqi-ga version that created it.
+    pub version: String,
+    /// The source commit it was built from (`+dirty` with uncommitted changes; `unknown` when
+    /// built outside a git checkout).
+    #[serde(default)]
+    pub commit: String,
+    /// Each later invocation that continued the run (`--resume`, or a batch resumed): when, and
+    /// the commit of the binary, which may differ from `commit`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub resumed: Vec<Resumed>,
+    /// [`Spec::results_hash`] of `spec.json` when the run began (recorded at the first resume for
+    /// runs created before it was): a resume refuses a spec.json changed since.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec_hash: Option<String>,
+}
+
+/// One invocation that continued a search, in `run.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Resumed {
+    /// When it started (UTC).
+    pub at: String,
+    /// The source commit of its binary.
+    pub commit: String,
+}
+
+/// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.
+pub fn fitness(scores: &[Option<f64>]) -> f64 {
+    let mut sum = 0.0;
+    for s in scores {
+        match s {
+            Some(v) => sum += v,
+            None => return f64::NEG_INFINITY,
+        }
+    }
+    sum / scores.len() as f64
+}
+
+pub(super) fn finite(f: f64) -> Option<f64> {
+    f.is_finite().then_some(f)
+}
+
+/// One individual of a generation, as logged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct IndividualRecord {
+    /// Position in the generation.
+    pub index: usize,
+    /// The genes.
+    pub genes: Chromosome,
+    /// What they decode to.
+    #[serde(flatten)]
+    pub decoded: Decoded,
+    /// The result's name ([`setting_id`]): individuals with the same setting share one evaluation.
+    pub setting: String,
+    /// Other individuals of this generation that decode alike, and so share this result.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shares_with: Vec<usize>,
+    /// Score per search dataset run (`null` = diverged); a pruned individual has fewer.
+    pub scores: Vec<Option<f64>>,
+    /// Mean score; `null` when any dataset diverged (fitness −∞) or when pruned.
+    pub fitness: Option<f64>,
+    /// Pruned (`search.prune`): its datasets stopped once their mean fell below the cutoff.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub pruned: bool,
+    /// How it came about: `initial` (random), `seeded` (`--seed-config`), `elite` or `child`.
+    pub origin: String,
+    /// A child's parents (their positions in the previous generation), its genes after the
+    /// interval crossover and before mutation, and whether it was mutated (thesis Appendix C).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub birth: Option<Birth>,
+}
+
+impl IndividualRecord {
+    /// The fitness used for ranking: −∞ when diverged or pruned.
+    pub fn rank_fitness(&self) -> f64 {
+        self.fitness.unwrap_or(f64::NEG_INFINITY)
+    }
+
+    /// The mean of the scores run so far (a pruned individual's partial score).
+    pub fn partial_mean(&self) -> Option<f64> {
+        finite(fitness(&self.scores)).filter(|_| !self.scores.is_empty())
+    }
+}
+
+/// Statistics of a generation's finite fitnesses.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GenerationStats {
+    /// Lowest finite fitness.
+    pub min: Option<f64>,
+    /// Mean of the finite fitnesses.
+    pub mean: Option<f64>,
+    /// Highest fitness.
+    pub max: Option<f64>,
+    /// Population standard deviation of the finite fitnesses.
+    pub std: Option<f64>,
+    /// Individuals with fitness −∞ (a diverged run).
+    pub diverged: usize,
+    /// Individuals pruned (`search.prune`).
+    #[serde(default)]
+    pub pruned: usize,
+}
+
+/// One line of `generations.jsonl`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GenerationRecord {
+    /// 0-based generation.
+    pub generation: usize,
+    /// Every individual.
+    pub individuals: Vec<IndividualRecord>,
+    /// Fitness statistics.
+    pub stats: GenerationStats,
+    /// Units (setting × dataset) this generation needed that no earlier generation had: the
+    /// FQI runs it cost. Shared settings, elites and settings seen before cost nothing.
+    #[serde(default)]
+    pub new_units: usize,
+    /// Pruning's cutoff for this generation (`search.prune`): the previous generation's
+    /// parent-pool line minus the margin; absent when pruning is off or in generation 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prune_below: Option<f64>,
+    /// Best individual so far (over all generations).
+    pub best_so_far: IndividualRecord,
+    /// Generation in which the best so far was found.
+    pub best_generation: usize,
+}
+
+/// `state.json`: where a run stands.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunState {
+    /// `running`, `finished` or `interrupted`.
+    pub state: String,
+    /// Generations completed.
+    pub generation: usize,
+    /// Generations planned.
+    pub generations: usize,
+    /// Best fitness so far.
+    pub best_fitness: Option<f64>,
+    /// Best settings so far.
+    pub best: Option<Decoded>,
+    /// Why it stopped (empty while running).
+    pub reason: String,
+    /// Last update (UTC).
+    pub updated: String,
+    /// Wall-clock seconds of each completed generation (summed over invocations).
+    #[serde(default)]
+    pub generation_seconds: Vec<f64>,
+    /// Seconds spent so far in the generation under way.
+    #[serde(default)]
+    pub current_seconds: f64,
+    /// Units of the generation under way: computed, and to compute (an upper bound with pruning).
+    #[serde(default)]
+    pub units_done: usize,
+    /// See `units_done`.
+    #[serde(default)]
+    pub units_total: usize,
+    /// Projected seconds to the end of the search if it runs every planned generation (the stall
+    /// rule may end it sooner), refined as units finish.
+    #[serde(default)]
+    pub eta_seconds: Option<f64>,
+}
+
+impl RunState {
+    /// Wall-clock seconds the search has run, over all invocations.
+    pub fn elapsed(&self) -> f64 {
+        self.generation_seconds.iter().sum::<f64>() + self.current_seconds
+    }
+}

@@ -1,0 +1,254 @@
+//! Running a generation's units and keeping the search's time across invocations: the executor
+//! call with the budget and Ctrl-C checks, `state.json`, and the ETA.
+
+use super::chromosome::Decoded;
+use super::records::{IndividualRecord, RunState};
+use super::search::Controls;
+use super::units::{Evaluator, expected_cost, parse_unit_id, setting_id, unit_id};
+use crate::error::Result;
+use crate::exec::Executor;
+use crate::progress::{Progress, human};
+use crate::spec::Spec;
+use crate::store::{self, read_json, write_json};
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// Timing of the search across invocations, for `state.json`, the progress line and the ETA.
+pub(super) struct Clock {
+    /// Completed generations' wall seconds (from earlier invocations too).
+    pub(super) generation_seconds: Vec<f64>,
+    /// Seconds the current generation ran in earlier invocations.
+    pub(super) prior: f64,
+    /// Start of the current generation in this invocation.
+    pub(super) since: Instant,
+    /// Expected seconds of each unit of the current generation still to run, and of those done.
+    pub(super) expected: HashMap<String, f64>,
+    pub(super) done_expected: f64,
+    pub(super) total_expected: f64,
+    pub(super) done: usize,
+    pub(super) total: usize,
+    pub(super) last_write: Option<Instant>,
+}
+
+impl Clock {
+    pub(super) fn resume(dir: &Path) -> Clock {
+        let st: Option<RunState> = read_json(&dir.join("state.json")).ok();
+        let (generation_seconds, prior) = match st {
+            Some(st) if st.generation_seconds.len() == st.generation => (st.generation_seconds, st.current_seconds),
+            _ => (Vec::new(), 0.0),
+        };
+        Clock {
+            generation_seconds,
+            prior,
+            since: Instant::now(),
+            expected: HashMap::new(),
+            done_expected: 0.0,
+            total_expected: 0.0,
+            done: 0,
+            total: 0,
+            last_write: None,
+        }
+    }
+
+    /// Seconds of the current generation so far.
+    pub(super) fn current(&self) -> f64 {
+        self.prior + self.since.elapsed().as_secs_f64()
+    }
+
+    /// Adds units to run in the current generation, with their expected seconds.
+    pub(super) fn plan(&mut self, units: &[(String, f64)]) {
+        for (id, e) in units {
+            self.expected.insert(id.clone(), *e);
+            self.total_expected += e;
+        }
+        self.total += units.len();
+    }
+
+    pub(super) fn unit_done(&mut self, id: &str) {
+        self.done += 1;
+        self.done_expected += self.expected.get(id).copied().unwrap_or(0.0);
+    }
+
+    /// Projected wall seconds of the current generation: what ran, plus what is left at the rate
+    /// (expected seconds per second) measured in this invocation.
+    pub(super) fn projected_generation(&self) -> Option<f64> {
+        let ran = self.since.elapsed().as_secs_f64();
+        if self.done_expected <= 0.0 || ran <= 0.0 {
+            return (self.total == 0).then(|| self.current());
+        }
+        let rate = self.done_expected / ran;
+        Some(self.current() + (self.total_expected - self.done_expected).max(0.0) / rate)
+    }
+
+    /// Projected seconds to the end of generation `generations − 1`, from generation `g`.
+    pub(super) fn eta(&self, g: usize, generations: usize) -> Option<f64> {
+        let this = self.projected_generation()?;
+        let per = if self.generation_seconds.is_empty() {
+            this
+        } else {
+            self.generation_seconds.iter().sum::<f64>() / self.generation_seconds.len() as f64
+        };
+        Some((this - self.current()).max(0.0) + per * generations.saturating_sub(g + 1) as f64)
+    }
+
+    /// Ends generation `g` and returns its wall seconds. A generation replayed from stored units
+    /// keeps the time recorded when it ran, and the generation under way keeps its earlier time.
+    pub(super) fn finish_generation(&mut self, g: usize) -> f64 {
+        if let Some(&recorded) = self.generation_seconds.get(g) {
+            return recorded;
+        }
+        let secs = self.current();
+        self.generation_seconds.push(secs);
+        self.prior = 0.0;
+        self.since = Instant::now();
+        self.expected.clear();
+        (self.done_expected, self.total_expected, self.done, self.total) = (0.0, 0.0, 0, 0);
+        secs
+    }
+}
+
+/// What `state.json` says besides the timing.
+pub(super) struct StateInfo<'a> {
+    pub(super) state: &'a str,
+    pub(super) generation: usize,
+    pub(super) best: Option<&'a IndividualRecord>,
+    pub(super) reason: &'a str,
+}
+
+pub(super) fn write_state(dir: &Path, spec: &Spec, info: &StateInfo<'_>, clock: &Clock) -> Result<()> {
+    let running = info.state == "running";
+    write_json(
+        &dir.join("state.json"),
+        &RunState {
+            state: info.state.into(),
+            generation: info.generation,
+            generations: spec.search.stop.generations,
+            best_fitness: info.best.and_then(|b| b.fitness),
+            best: info.best.map(|b| b.decoded),
+            reason: info.reason.into(),
+            updated: store::now_utc().1,
+            generation_seconds: clock.generation_seconds.clone(),
+            current_seconds: if info.generation < spec.search.stop.generations { clock.current() } else { 0.0 },
+            units_done: clock.done,
+            units_total: clock.total,
+            eta_seconds: if running { clock.eta(info.generation, spec.search.stop.generations) } else { None },
+        },
+    )
+}
+
+/// Expected seconds of each unit: the mean of its setting's stored units where there are some,
+/// else [`expected_cost`] scaled by the run's seconds per unit of cost so far.
+fn expected_seconds(ev: &Evaluator, ids: &[(Decoded, usize)]) -> Vec<(String, f64)> {
+    let s = &ev.spec().search;
+    let mut known: HashMap<String, (f64, usize)> = HashMap::new();
+    let mut ratios = Vec::new();
+    let dir = ev.unit_path("x");
+    if let Ok(entries) = std::fs::read_dir(dir.parent().expect("units folder")) {
+        for e in entries.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let Some(id) = name.strip_suffix(".json") else { continue };
+            let (Some((set, _)), Some(u)) = (parse_unit_id(id), ev.load_unit(id)) else { continue };
+            let k = known.entry(setting_id(&set)).or_insert((0.0, 0));
+            (k.0, k.1) = (k.0 + u.seconds, k.1 + 1);
+            ratios.push(u.seconds / expected_cost(&set, s.network.max_epochs).max(1e-9));
+        }
+    }
+    ratios.sort_by(f64::total_cmp);
+    let per_cost = ratios.get(ratios.len() / 2).copied().unwrap_or(1.0);
+    ids.iter()
+        .map(|(set, d)| {
+            let e = known
+                .get(&setting_id(set))
+                .map_or(expected_cost(set, s.network.max_epochs) * per_cost, |(t, n)| t / *n as f64);
+            (unit_id(set, *d), e)
+        })
+        .collect()
+}
+
+/// Runs the units `want` that are not stored yet, longest expected first. Returns false when the
+/// run must stop (interrupt, budget, or units missing afterwards), with the reason.
+pub(super) struct Runner<'a> {
+    pub(super) dir: &'a Path,
+    pub(super) spec: &'a Spec,
+    pub(super) ev: &'a Evaluator,
+    pub(super) exec: &'a dyn Executor,
+    pub(super) controls: &'a Controls<'a>,
+    pub(super) progress: &'a Progress,
+    pub(super) started: Instant,
+    pub(super) budget_hit: AtomicBool,
+    pub(super) stop: AtomicBool,
+    pub(super) clock: Mutex<Clock>,
+}
+
+impl Runner<'_> {
+    pub(super) fn over_budget(&self) -> bool {
+        self.controls.max_hours.is_some_and(|h| self.started.elapsed().as_secs_f64() > h * 3600.0)
+    }
+
+    /// Evaluates the missing units among `want`; `Err(reason)` when the run has to stop.
+    pub(super) fn run(
+        &self,
+        g: usize,
+        want: &[(Decoded, usize)],
+        best: Option<&IndividualRecord>,
+    ) -> Result<std::result::Result<(), String>> {
+        let missing: Vec<(Decoded, usize)> =
+            want.iter().copied().filter(|(s, d)| self.ev.load_unit(&unit_id(s, *d)).is_none()).collect();
+        let mut planned = expected_seconds(self.ev, &missing);
+        // Longest first (stable: ties keep setting and dataset order), so that the last units of a
+        // generation are short and no core waits long for the others.
+        planned.sort_by(|a, b| b.1.total_cmp(&a.1));
+        self.clock.lock().expect("clock").plan(&planned);
+        self.progress.add_to_stage(planned.len() as u64);
+        let ids: Vec<String> = planned.into_iter().map(|(id, _)| id).collect();
+        // Checked here too, for executors that do not call `work` (Slurm runs units elsewhere).
+        if self.over_budget() {
+            self.budget_hit.store(true, Ordering::SeqCst);
+            self.stop.store(true, Ordering::SeqCst);
+        }
+        let work = |id: &str| -> Result<()> {
+            if self.over_budget() {
+                self.budget_hit.store(true, Ordering::SeqCst);
+                self.stop.store(true, Ordering::SeqCst);
+                return Ok(());
+            }
+            if self.controls.interrupt.load(Ordering::SeqCst) {
+                self.stop.store(true, Ordering::SeqCst);
+                return Ok(());
+            }
+            self.ev.run_unit(id)
+        };
+        let done = |id: &str| {
+            let mut c = self.clock.lock().expect("clock");
+            c.unit_done(id);
+            let eta = c.eta(g, self.spec.search.stop.generations);
+            let gen_left = c.projected_generation().map(|p| (p - c.current()).max(0.0));
+            self.progress.unit_done(&format!(
+                "gen ≈ {} left · search ≈ {} left",
+                gen_left.map_or("?".into(), human),
+                eta.map_or("?".into(), human)
+            ));
+            if c.last_write.is_none_or(|t| t.elapsed().as_secs_f64() > 5.0) {
+                c.last_write = Some(Instant::now());
+                let info = StateInfo { state: "running", generation: g, best, reason: "" };
+                let _ = write_state(self.dir, self.spec, &info, &c);
+            }
+        };
+        self.exec.run(&ids, &work, &done, &self.stop)?;
+        let missing = ids.iter().any(|id| self.ev.load_unit(id).is_none());
+        if self.stop.load(Ordering::SeqCst) || self.controls.interrupt.load(Ordering::SeqCst) || missing {
+            let reason = if self.budget_hit.load(Ordering::SeqCst) {
+                format!("time budget of {} h reached", self.controls.max_hours.unwrap_or(0.0))
+            } else if self.controls.interrupt.load(Ordering::SeqCst) {
+                "interrupted".to_string()
+            } else {
+                "units missing after evaluation".to_string()
+            };
+            return Ok(Err(reason));
+        }
+        Ok(Ok(()))
+    }
+}

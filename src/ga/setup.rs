@@ -1,0 +1,195 @@
+//! Starting a search: its spec resolved from the spec file, presets and [`SearchOverrides`], and
+//! its run directory created; and changing the stop rules of one before resuming it.
+
+use super::chromosome::{Chromosome, Decoded, GeneRanges};
+use super::records::RunInfo;
+use super::search::describe;
+use crate::error::{Error, Result};
+use crate::spec::Spec;
+use crate::store::{self, write_json};
+use crate::tuned::TunedConfig;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Creates the run directory contents of a new search.
+pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
+    store::create_dir(&dir.join("units"))?;
+    write_json(&dir.join("spec.json"), spec)?;
+    write_json(&dir.join("run.json"), info)
+}
+
+/// Overrides of a search spec, each of one spec field (see [`resolve`]). Declared once for
+/// `search`'s flags and a batch plan's search jobs, whose fields are the flags' names
+/// (`"stall_generations": 5`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, clap::Args)]
+#[serde(deny_unknown_fields)]
+pub struct SearchOverrides {
+    /// Generations to run.
+    #[arg(long)]
+    pub generations: Option<usize>,
+    /// Individuals per generation.
+    #[arg(long)]
+    pub population: Option<usize>,
+    /// Search datasets per chromosome.
+    #[arg(long)]
+    pub datasets: Option<usize>,
+    /// FQI iterations.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Episodes per search dataset.
+    #[arg(long)]
+    pub episodes: Option<usize>,
+    /// Master seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Stop after this many generations without improvement.
+    #[arg(long)]
+    pub stall_generations: Option<usize>,
+    /// Place a given config in generation 0 (`thesis` or a best.json; repeatable), in place of a
+    /// random individual; recorded as `seeded` in generations.jsonl.
+    #[arg(long, value_name = "thesis|FILE")]
+    #[serde(default)]
+    pub seed_config: Vec<String>,
+}
+
+/// Resolves a spec (name or file), applies presets and overrides, validates it and creates the run
+/// directory (`out`, or `<results>/<env>/search-<timestamp>`). Returns the directory.
+pub fn prepare(
+    spec_name: &str,
+    presets: &[String],
+    o: &SearchOverrides,
+    out: Option<&Path>,
+    results: &Path,
+) -> Result<PathBuf> {
+    let (spec, info) = resolve(spec_name, presets, o)?;
+    let dir = store::claim_run_dir(out, "spec.json", "a run", &results.join(&info.env), "search-")?;
+    create(&dir, &spec, &info)?;
+    Ok(dir)
+}
+
+/// The spec and run record a search would start with, every layer validated, creating nothing
+/// (what `prepare` and a batch plan's check before it runs use).
+pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Result<(Spec, RunInfo)> {
+    // Each layer is validated as written, so an error names the file that holds it: the spec
+    // file alone, then after each preset (naming the preset), then after the flags.
+    let (mut value, origin) = Spec::resolve_value(spec_name)?;
+    Spec::from_value(value.clone(), &origin)?;
+    let mut applied = Vec::new();
+    for p in presets {
+        let (patch, from) = crate::spec::load_preset(p)?;
+        if !patch.is_object() {
+            return Err(Error::File { path: from, message: "a preset must be a JSON object of spec fields".into() });
+        }
+        crate::spec::merge_patch(&mut value, &patch);
+        Spec::from_value(value.clone(), &from).map_err(|e| match e {
+            Error::File { path, message } => {
+                Error::File { path, message: format!("{message} (applied to {})", origin.display()) }
+            }
+            other => other,
+        })?;
+        applied.push(from.display().to_string());
+    }
+    let mut overrides = BTreeMap::new();
+    let mut set = |field: &str, path: &[&str], v: Option<serde_json::Value>| {
+        if let Some(v) = v {
+            // Objects on the path are created where a field was left to its default; the result is
+            // validated below like everything else.
+            let mut slot = &mut value;
+            for key in path {
+                if !slot.is_object() {
+                    *slot = serde_json::Value::Object(Default::default());
+                }
+                let serde_json::Value::Object(m) = slot else { unreachable!("made an object above") };
+                slot = m.entry(key.to_string()).or_insert(serde_json::Value::Null);
+            }
+            *slot = v.clone();
+            overrides.insert(field.to_string(), v);
+        }
+    };
+    use serde_json::json;
+    set("generations", &["search", "stop", "generations"], o.generations.map(|v| json!(v)));
+    set("population", &["search", "ga", "population"], o.population.map(|v| json!(v)));
+    set("datasets", &["search", "datasets"], o.datasets.map(|v| json!(v)));
+    set("iterations", &["search", "iterations"], o.iterations.map(|v| json!(v)));
+    set("episodes", &["search", "episodes"], o.episodes.map(|v| json!(v)));
+    set("seed", &["seed"], o.seed.map(|v| json!(v)));
+    set("stall_generations", &["search", "stop", "stall_generations"], o.stall_generations.map(|v| json!(v)));
+    let after = |e| match e {
+        Error::File { path, message } => {
+            Error::File { path, message: format!("{message} (after presets and overrides)") }
+        }
+        other => other,
+    };
+    let mut spec = Spec::from_value(value.clone(), &origin).map_err(after)?;
+    let env = spec.env.env().name().to_string();
+    if !o.seed_config.is_empty() {
+        // Encoded on the gene grid of the spec as resolved, then validated with it.
+        let seeded = seed_chromosomes(&o.seed_config, &env, &spec.search.genes)?;
+        value["search"]["seeded"] = serde_json::json!(seeded);
+        overrides.insert("seed_config".into(), serde_json::json!(o.seed_config));
+        spec = Spec::from_value(value, &origin).map_err(after)?;
+    }
+    let info = RunInfo {
+        kind: "search".into(),
+        env,
+        spec_source: origin.display().to_string(),
+        presets: applied,
+        overrides,
+        created: store::now_utc().1,
+        version: env!("CARGO_PKG_VERSION").into(),
+        commit: env!("BFQI_GA_COMMIT").into(),
+        resumed: Vec::new(),
+        spec_hash: Some(spec.results_hash()),
+    };
+    Ok((spec, info))
+}
+
+/// The chromosomes of tuned configs (`thesis` or files) for `search.seeded`: each must be for
+/// `env` and its setting must lie on the gene grid.
+fn seed_chromosomes(names: &[String], env: &str, genes: &GeneRanges) -> Result<Vec<Chromosome>> {
+    names
+        .iter()
+        .map(|name| {
+            let (t, from) = TunedConfig::resolve(name, env)?;
+            t.check_env(env, &from)?;
+            let refuse = |message: String| Error::File { path: from.clone(), message };
+            let setting = Decoded { activation: t.activation, delta_min: t.delta_min, patience: t.patience };
+            super::chromosome::encode(&setting, genes).ok_or_else(|| {
+                refuse(format!(
+                    "its setting ({}) is not on this search's gene grid (search.genes), so it cannot join generation 0",
+                    describe(&setting)
+                ))
+            })
+        })
+        .collect()
+}
+
+/// Changes the stop rules of an existing search before resuming it (they do not alter what was
+/// computed, only how far it goes).
+pub fn extend(dir: &Path, generations: Option<usize>, stall_generations: Option<usize>) -> Result<()> {
+    let mut spec = load_spec(dir)?;
+    if generations.is_none() && stall_generations.is_none() {
+        return Ok(());
+    }
+    if let Some(g) = generations {
+        spec.search.stop.generations = g;
+    }
+    if let Some(s) = stall_generations {
+        spec.search.stop.stall_generations = Some(s);
+    }
+    spec.validate()?;
+    write_json(&dir.join("spec.json"), &spec)
+}
+
+/// Loads the resolved spec of an existing search directory.
+pub fn load_spec(dir: &Path) -> Result<Spec> {
+    let path = dir.join("spec.json");
+    if !path.is_file() {
+        return Err(Error::File {
+            path: dir.to_path_buf(),
+            message: "not a search run directory (no spec.json)".into(),
+        });
+    }
+    Spec::load(&path)
+}
