@@ -12,11 +12,11 @@
 use crate::compare;
 use crate::error::{Error, Result};
 use crate::exec::ExecutorFactory;
-use crate::ga::search::{self, Controls, Ending, SearchOverrides};
+use crate::ga::search::{self, SearchOverrides};
+use crate::run_dir::{Budget, Ending};
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// A search job of a plan: `{"name", "search", "presets", ...}` and any [`SearchOverrides`] field.
@@ -189,15 +189,51 @@ fn deser<T: serde::de::DeserializeOwned>(v: &serde_json::Value, label: &str, ori
     crate::error::from_json(v.clone(), origin, &format!("{label}: "))
 }
 
+/// What a job is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobKind {
+    /// A search.
+    Search,
+    /// A comparison.
+    Compare,
+}
+
+/// Where a job stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JobPhase {
+    /// Not started.
+    Pending,
+    /// Ran to its end.
+    Finished,
+    /// Failed (its message says why); the other jobs went on.
+    Failed,
+    /// Stopped by the budget or Ctrl-C; it resumes.
+    Interrupted,
+}
+
+impl JobPhase {
+    /// Its name, as `batch.json` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            JobPhase::Pending => "pending",
+            JobPhase::Finished => "finished",
+            JobPhase::Failed => "failed",
+            JobPhase::Interrupted => "interrupted",
+        }
+    }
+}
+
 /// Where each job stands (`batch.json`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobState {
     /// Job name.
     pub name: String,
-    /// `search` or `compare`.
-    pub kind: String,
-    /// `pending`, `finished`, `failed` or `interrupted`.
-    pub state: String,
+    /// Search or comparison.
+    pub kind: JobKind,
+    /// Pending, finished, failed or interrupted.
+    pub state: JobPhase,
     /// Its run directory (relative to the batch directory).
     pub dir: String,
     /// Why it failed or stopped.
@@ -206,18 +242,6 @@ pub struct JobState {
     pub seconds: f64,
     /// One-line result: best fitness and settings, or claims.
     pub result: String,
-}
-
-/// How a batch invocation ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum BatchEnding {
-    /// Every job ran (some may have failed).
-    Done {
-        /// Jobs that failed.
-        failed: usize,
-    },
-    /// Stopped by the budget or Ctrl-C; resumable.
-    Stopped(String),
 }
 
 /// Creates a batch directory for `plan` (read from `plan_path`).
@@ -233,8 +257,8 @@ pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<Pa
         .iter()
         .map(|j| JobState {
             name: j.name().to_string(),
-            kind: if matches!(j, Job::Search(_)) { "search".into() } else { "compare".into() },
-            state: "pending".into(),
+            kind: if matches!(j, Job::Search(_)) { JobKind::Search } else { JobKind::Compare },
+            state: JobPhase::Pending,
             dir: j.name().to_string(),
             message: String::new(),
             seconds: 0.0,
@@ -243,16 +267,6 @@ pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<Pa
         .collect();
     write_json(&dir.join("batch.json"), &states)?;
     Ok(dir)
-}
-
-/// Budget and stop controls of a batch invocation.
-pub struct BatchControls<'a> {
-    /// Raised by Ctrl-C.
-    pub interrupt: &'a AtomicBool,
-    /// Wall-clock budget of this invocation, in hours.
-    pub max_hours: Option<f64>,
-    /// No progress output.
-    pub quiet: bool,
 }
 
 fn describe_search(dir: &Path) -> String {
@@ -268,56 +282,63 @@ fn describe_search(dir: &Path) -> String {
     }
 }
 
-/// Runs (or resumes) the batch in `dir`.
-pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -> Result<BatchEnding> {
+/// A job's state after it ran: its ending, and its one-line result.
+fn job_state(ending: &Ending) -> (JobPhase, String) {
+    match ending {
+        Ending::Finished(why) => (JobPhase::Finished, why.clone()),
+        Ending::Stopped(stop) => (JobPhase::Interrupted, stop.to_string()),
+        Ending::Failed(why) => (JobPhase::Failed, why.clone()),
+    }
+}
+
+/// Runs (or resumes) the batch in `dir`, one job after another, until `budget` says stop (each job
+/// stops between its units). Ends `Failed` when some job failed.
+pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
     let plan_path = dir.join("plan.json");
     let plan = Plan::parse(&store::read_input(&plan_path)?, &plan_path)?;
     let mut states: Vec<JobState> = read_json(&dir.join("batch.json"))?;
     let _lock = RunLock::acquire(dir)?;
-    let started = Instant::now();
     let n = plan.jobs.len();
-    let mut ending = None;
+    let mut stopped = None;
     for (i, job) in plan.jobs.iter().enumerate() {
-        if states[i].state == "finished" {
+        if states[i].state == JobPhase::Finished {
             continue;
         }
-        let remaining = c.max_hours.map(|h| h - started.elapsed().as_secs_f64() / 3600.0);
-        if remaining.is_some_and(|r| r <= 0.0) || c.interrupt.load(Ordering::SeqCst) {
-            ending = Some(BatchEnding::Stopped(if c.interrupt.load(Ordering::SeqCst) {
-                "interrupted".into()
-            } else {
-                "time budget reached".into()
-            }));
+        if let Some(stop) = budget.check() {
+            stopped = Some(stop);
             break;
         }
-        if !c.quiet {
-            eprintln!("{} job {} of {n}: {} ({})", store::now_utc().1, i + 1, job.name(), states[i].kind);
+        if !quiet {
+            eprintln!(
+                "{} job {} of {n}: {} ({})",
+                store::now_utc().1,
+                i + 1,
+                job.name(),
+                job_kind_name(states[i].kind)
+            );
         }
         let t = Instant::now();
         let job_dir = dir.join(job.name());
-        let outcome: Result<(String, String, String)> = match job {
+        let outcome: Result<(Ending, String)> = match job {
             Job::Search(s) => (|| {
                 if !job_dir.join("spec.json").is_file() {
                     search::prepare(&s.search, &s.presets, &s.overrides, Some(&job_dir), Path::new("results"))?;
                 }
-                let controls = Controls { interrupt: c.interrupt, max_hours: remaining, quiet: c.quiet };
                 let exec = make_exec(&job_dir)?;
-                Ok(match search::run(&job_dir, exec.as_ref(), &controls)? {
-                    Ending::Finished(r) => ("finished".into(), r, describe_search(&job_dir)),
-                    Ending::Interrupted(r) => ("interrupted".into(), r, describe_search(&job_dir)),
-                })
+                let ending = search::run(&job_dir, exec.as_ref(), budget, quiet)?;
+                Ok((ending, describe_search(&job_dir)))
             })(),
             Job::Compare(cj) => (|| {
                 if !job_dir.join("compare.json").is_file() {
                     let mut r = cj.request.clone();
                     if let Some(src) = r.tuned.strip_prefix("from:") {
                         let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
-                        if states[k].state != "finished" {
+                        if states[k].state != JobPhase::Finished {
                             return Err(Error::File {
                                 path: dir.join(src),
                                 message: format!(
                                     "search job `{src}` has not finished ({}), so it has no tuned config",
-                                    states[k].state
+                                    states[k].state.name()
                                 ),
                             });
                         }
@@ -326,43 +347,55 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, c: &BatchControls<'_>) -
                     compare::prepare(&cj.compare, &r, Some(&job_dir), Path::new("results"))?;
                 }
                 let exec = make_exec(&job_dir)?;
-                if !compare::run(&job_dir, exec.as_ref(), c.interrupt, remaining, c.quiet)? {
-                    return Ok(("interrupted".into(), "stopped between units".into(), String::new()));
+                let ending = compare::run(&job_dir, exec.as_ref(), budget, quiet)?;
+                if !matches!(ending, Ending::Finished(_)) {
+                    return Ok((ending, String::new()));
                 }
                 let out = crate::report::comparison::regenerate(&job_dir)?;
                 let supported =
                     out.claims.iter().filter(|c| c.verdict == crate::report::claims::Verdict::Supported).count();
-                Ok((
-                    "finished".into(),
-                    String::new(),
-                    format!("{supported} of {} thesis claims supported; report.md", out.claims.len()),
-                ))
+                Ok((ending, format!("{supported} of {} thesis claims supported; report.md", out.claims.len())))
             })(),
         };
         states[i].seconds += t.elapsed().as_secs_f64();
         match outcome {
-            Ok((state, message, result)) => {
-                states[i].state = state;
+            Ok((ending, result)) => {
+                let (phase, message) = job_state(&ending);
+                states[i].state = phase;
                 states[i].message = message;
                 states[i].result = result;
+                if let Ending::Stopped(stop) = ending {
+                    stopped = Some(stop);
+                }
             }
             Err(e) => {
-                states[i].state = "failed".into();
+                states[i].state = JobPhase::Failed;
                 states[i].message = e.to_string();
-                if !c.quiet {
+                if !quiet {
                     eprintln!("{} job {} failed: {e}", store::now_utc().1, job.name());
                 }
             }
         }
         write_json(&dir.join("batch.json"), &states)?;
         write_summary(dir, &states)?;
-        if states[i].state == "interrupted" {
-            ending = Some(BatchEnding::Stopped(states[i].message.clone()));
+        if stopped.is_some() {
             break;
         }
     }
     write_summary(dir, &states)?;
-    Ok(ending.unwrap_or(BatchEnding::Done { failed: states.iter().filter(|s| s.state == "failed").count() }))
+    let failed = states.iter().filter(|s| s.state == JobPhase::Failed).count();
+    Ok(match stopped {
+        Some(stop) => Ending::Stopped(stop),
+        None if failed > 0 => Ending::Failed(format!("{failed} job(s) failed (see the summary)")),
+        None => Ending::Finished(format!("all {n} jobs")),
+    })
+}
+
+fn job_kind_name(k: JobKind) -> &'static str {
+    match k {
+        JobKind::Search => "search",
+        JobKind::Compare => "compare",
+    }
 }
 
 fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
@@ -370,9 +403,9 @@ fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
         "# Batch summary\n\n| job | kind | state | time | result | details |\n|---|---|---|---|---|---|\n",
     );
     for s in states {
-        let link = match s.kind.as_str() {
-            "compare" if s.state == "finished" => format!("[report]({}/report.md)", s.dir),
-            "search" if dir.join(&s.dir).join("best.json").is_file() => {
+        let link = match s.kind {
+            JobKind::Compare if s.state == JobPhase::Finished => format!("[report]({}/report.md)", s.dir),
+            JobKind::Search if dir.join(&s.dir).join("best.json").is_file() => {
                 format!("[best.json]({0}/best.json), [fitness]({0}/fitness.png)", s.dir)
             }
             _ => String::new(),
@@ -381,8 +414,8 @@ fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} |\n",
             s.name,
-            s.kind,
-            s.state,
+            job_kind_name(s.kind),
+            s.state.name(),
             crate::progress::human(s.seconds),
             s.result.replace('|', "/"),
             details

@@ -1,8 +1,8 @@
 //! Comparison runs (`bfqi-ga compare`, thesis §4.5–4.7): FQI and B-FQI on the same comparison
 //! datasets, with tuned settings, over iterations, complexities and dataset sizes.
 //!
-//! A unit is one (learner, algorithm, complexity, size, dataset) run, stored atomically as
-//! `units/<id>.json` in the run directory; results are always read back from those files, so an
+//! A unit is one (learner, algorithm, complexity, size, dataset) run, stored atomically in the run
+//! directory's units ([`crate::run_dir`]); results are always read back from those files, so an
 //! interrupted comparison resumes without redoing finished units, and `report` rebuilds every table
 //! and plot without recomputing.
 
@@ -16,13 +16,13 @@ use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::MlpParams;
 use crate::progress::Progress;
 use crate::report::claims::ClaimSpec;
+use crate::run_dir::{Budget, Ending, Stop, UnitStore, Units};
 use crate::spec::{LearnerKind, SampleSweep, Spec};
 use crate::store::{self, RunLock, read_json, write_json};
 use crate::tuned::TunedConfig;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Which analyses to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
@@ -407,7 +407,7 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
 
 /// Creates a comparison run directory's configuration files.
 pub fn create(dir: &Path, cfg: &CompareConfig, info: &serde_json::Value) -> Result<()> {
-    store::create_dir(&dir.join("units"))?;
+    UnitStore::units(dir).prepare()?;
     write_json(&dir.join("compare.json"), cfg)?;
     write_json(&dir.join("run.json"), info)
 }
@@ -424,71 +424,89 @@ pub fn load(dir: &Path) -> Result<CompareConfig> {
     read_json(&p)
 }
 
-fn unit_path(dir: &Path, id: &str) -> PathBuf {
-    dir.join("units").join(format!("{id}.json"))
+/// The units of the comparison in a run directory, as executors and the Slurm worker see them.
+pub struct Comparison {
+    cfg: CompareConfig,
+    units: Vec<Unit>,
+    store: UnitStore,
 }
 
-/// Whether a unit is stored whole: a file that does not parse (truncated by a kill or a full
-/// disk, or damaged) is computed again, with a warning.
-fn unit_done(dir: &Path, id: &str) -> bool {
-    let p = unit_path(dir, id);
-    if !p.is_file() {
-        return false;
+impl Comparison {
+    /// The comparison in `dir` (its `compare.json`).
+    pub fn open(dir: &Path) -> Result<Self> {
+        let cfg = load(dir)?;
+        Ok(Comparison { units: cfg.units(), cfg, store: UnitStore::units(dir) })
     }
-    match read_json::<DatasetResult>(&p) {
-        Ok(_) => true,
-        Err(e) => {
-            eprintln!("warning: {e}; it will be computed again");
-            false
+
+    /// Its configuration.
+    pub fn config(&self) -> &CompareConfig {
+        &self.cfg
+    }
+
+    /// Every unit's id, in the configuration's order.
+    pub fn ids(&self) -> Vec<String> {
+        self.units.iter().map(|u| self.cfg.unit_id(u)).collect()
+    }
+}
+
+impl Units for Comparison {
+    fn store(&self) -> &UnitStore {
+        &self.store
+    }
+
+    /// Whether a unit is stored whole: a file that does not parse (truncated by a kill or a full
+    /// disk, or damaged) is computed again, with a warning.
+    fn stored(&self, id: &str) -> bool {
+        let p = self.store.path(id);
+        if !p.is_file() {
+            return false;
+        }
+        match read_json::<DatasetResult>(&p) {
+            Ok(_) => true,
+            Err(e) => {
+                eprintln!("warning: {e}; it will be computed again");
+                false
+            }
         }
     }
+
+    fn compute(&self, id: &str) -> Result<()> {
+        let u = self
+            .units
+            .iter()
+            .find(|u| self.cfg.unit_id(u) == id)
+            .ok_or_else(|| Error::invalid("unit", id, "is not a unit of this comparison"))?;
+        let r = run_dataset(&self.cfg.run_config(u), u.dataset, |_| {})?;
+        write_json(&self.store.path(id), &r)
+    }
 }
 
-/// Evaluates one unit by id and stores it (also the Slurm worker's entry point).
-pub fn run_unit(dir: &Path, cfg: &CompareConfig, id: &str) -> Result<()> {
-    let u = cfg
-        .units()
-        .into_iter()
-        .find(|u| cfg.unit_id(u) == id)
-        .ok_or_else(|| Error::invalid("unit", id, "is not a unit of this comparison"))?;
-    let r = run_dataset(&cfg.run_config(&u), u.dataset, |_| {})?;
-    write_json(&unit_path(dir, id), &r)
-}
-
-/// Runs (or resumes) every missing unit of the comparison in `dir`. Returns false if stopped early.
-///
-/// With `max_hours`, no unit starts after that many hours (running units finish).
-pub fn run(
-    dir: &Path,
-    exec: &dyn Executor,
-    interrupt: &AtomicBool,
-    max_hours: Option<f64>,
-    quiet: bool,
-) -> Result<bool> {
-    let started = std::time::Instant::now();
-    let cfg = load(dir)?;
+/// Runs (or resumes) every missing unit of the comparison in `dir`, until `budget` says stop.
+pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
+    let comparison = Comparison::open(dir)?;
     let _lock = RunLock::acquire(dir)?;
     // What a kill can leave: a deleted units/ is made again, temporary files are removed.
-    store::create_dir(&dir.join("units"))?;
     store::remove_temporaries(dir)?;
-    store::remove_temporaries(&dir.join("units"))?;
-    let ids: Vec<String> = cfg.units().iter().map(|u| cfg.unit_id(u)).filter(|id| !unit_done(dir, id)).collect();
+    comparison.store.prepare()?;
+    let all = comparison.ids();
+    let ids: Vec<String> = all.iter().filter(|id| !comparison.stored(id)).cloned().collect();
     let progress = Progress::new("comparison", 1, quiet);
-    progress.line(&format!("compare {} → {} ({} units to run)", cfg.env.env().name(), dir.display(), ids.len()));
+    progress.line(&format!(
+        "compare {} → {} ({} units to run)",
+        comparison.cfg.env.env().name(),
+        dir.display(),
+        ids.len()
+    ));
     progress.start_stage("units", ids.len() as u64);
-    let stop = AtomicBool::new(false);
-    let work = |id: &str| -> Result<()> {
-        let over = max_hours.is_some_and(|h| started.elapsed().as_secs_f64() > h * 3600.0);
-        if over || interrupt.load(Ordering::SeqCst) {
-            stop.store(true, Ordering::SeqCst);
-            return Ok(());
-        }
-        run_unit(dir, &cfg, id)
-    };
-    exec.run(&ids, &work, &|_| progress.unit_done(""), &stop)?;
+    let stop = exec.run(&comparison, &ids, budget, &|_| progress.unit_done(""))?;
     progress.stage_done();
     progress.finish();
-    Ok(ids.iter().all(|id| unit_path(dir, id).is_file()))
+    let missing = ids.iter().filter(|id| !comparison.store.path(id).is_file()).count();
+    Ok(match stop {
+        Some(stop) => Ending::Stopped(stop),
+        None if missing > 0 => Ending::Stopped(Stop::Missing(missing)),
+        None => Ending::Finished(format!("all {} units", all.len())),
+    })
 }
 
 /// Reads every unit of a finished comparison.
@@ -496,7 +514,7 @@ pub fn collect(dir: &Path, cfg: &CompareConfig) -> Result<Vec<UnitRecord>> {
     cfg.units()
         .into_iter()
         .map(|u| {
-            let p = unit_path(dir, &cfg.unit_id(&u));
+            let p = UnitStore::units(dir).path(&cfg.unit_id(&u));
             Ok(UnitRecord { unit: u, result: read_json(&p)? })
         })
         .collect()
@@ -507,12 +525,27 @@ mod resume_tests {
     use super::*;
 
     #[test]
-    fn a_truncated_unit_is_not_done() {
+    fn a_truncated_unit_is_not_stored() {
         let dir = std::env::temp_dir().join(format!("bfqi-compare-unit-{}", std::process::id()));
-        std::fs::create_dir_all(dir.join("units")).unwrap();
-        assert!(!unit_done(&dir, "u"));
-        std::fs::write(unit_path(&dir, "u"), "{\"dataset\": 0, \"transi").unwrap();
-        assert!(!unit_done(&dir, "u"));
+        let spec = Spec::resolve("cartpole").unwrap().0;
+        let (tuned, _) = TunedConfig::resolve("thesis", "cartpole").unwrap();
+        let r = Request {
+            tuned: "thesis".into(),
+            analysis: AnalysisChoice::Iterations,
+            learner: LearnerChoice::Et,
+            datasets: Some(1),
+            episodes: None,
+            iterations: None,
+            complexities: None,
+            sizes: None,
+        };
+        let cfg = CompareConfig::new(&spec, tuned, r.analysis.analyses(), &r.learner.learners(), &r).unwrap();
+        create(&dir, &cfg, &serde_json::json!({})).unwrap();
+        let c = Comparison::open(&dir).unwrap();
+        let id = &c.ids()[0];
+        assert!(!c.stored(id));
+        std::fs::write(c.store().path(id), "{\"dataset\": 0, \"transi").unwrap();
+        assert!(!c.stored(id));
         std::fs::remove_dir_all(dir).unwrap();
     }
 }

@@ -23,6 +23,8 @@ pub mod progress;
 pub mod report;
 pub mod rng;
 pub mod rollout;
+pub mod run_dir;
+pub mod runs;
 pub mod spec;
 pub mod store;
 #[cfg(test)]

@@ -1,10 +1,12 @@
 //! The long jobs and their run directories: `search`, `compare`, `batch`, `validate`, `status`,
 //! `report`.
 
-use super::{Outcome, stopped};
+use super::{Outcome, outcome};
 use crate::compare;
 use crate::exec::{self, interrupt_flag};
 use crate::ga::search::{self, SearchOverrides};
+use crate::run_dir::{Budget, Ending};
+use crate::runs::RunKind;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -156,19 +158,14 @@ pub(super) fn search(a: SearchArgs) -> Result<Outcome> {
         Some(h) => Some(h),
         None => search::load_spec(&dir)?.search.stop.max_hours,
     };
-    let controls = search::Controls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
+    let budget = Budget::new(interrupt_flag(), max_hours);
     let exec = a.exec.executor(&dir)?;
-    match search::run(&dir, exec.as_ref(), &controls)? {
-        search::Ending::Finished(reason) => {
-            eprintln!("finished ({reason}): {}", dir.display());
-            eprintln!("tuned config: {}", dir.join("best.json").display());
-            Ok(Outcome::Success)
-        }
-        search::Ending::Interrupted(reason) => {
-            eprintln!("stopped ({reason}): resume with  bfqi-ga search --resume {}", dir.display());
-            Ok(stopped())
-        }
+    let ending = search::run(&dir, exec.as_ref(), &budget, a.quiet)?;
+    if let Ending::Finished(reason) = &ending {
+        eprintln!("finished ({reason}): {}", dir.display());
+        eprintln!("tuned config: {}", dir.join("best.json").display());
     }
+    Ok(outcome(&ending, &format!("bfqi-ga search --resume {}", dir.display())))
 }
 
 pub(super) fn compare(a: CompareArgs) -> Result<Outcome> {
@@ -180,9 +177,9 @@ pub(super) fn compare(a: CompareArgs) -> Result<Outcome> {
         compare::prepare(name, &a.request, a.out.as_deref(), Path::new("results"))?
     };
     let exec = a.exec.executor(&dir)?;
-    if !compare::run(&dir, exec.as_ref(), interrupt_flag(), None, a.quiet)? {
-        eprintln!("stopped: resume with  bfqi-ga compare --resume {}", dir.display());
-        return Ok(Outcome::Interrupted);
+    let ending = compare::run(&dir, exec.as_ref(), &Budget::new(interrupt_flag(), None), a.quiet)?;
+    if !matches!(ending, Ending::Finished(_)) {
+        return Ok(outcome(&ending, &format!("bfqi-ga compare --resume {}", dir.display())));
     }
     let out = crate::report::comparison::regenerate(&dir)?;
     for c in &out.claims {
@@ -194,7 +191,7 @@ pub(super) fn compare(a: CompareArgs) -> Result<Outcome> {
 }
 
 pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
-    use crate::batch::{self, BatchControls, BatchEnding, Job, Plan};
+    use crate::batch::{self, Job, Plan};
     // The budget is checked before the batch directory exists.
     let max_hours = crate::clock::budget(a.max_hours, a.until.as_deref())?;
     if let (true, Some(plan)) = (a.dry_run, &a.plan) {
@@ -214,20 +211,10 @@ pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
     if !a.quiet {
         eprintln!("batch → {}", dir.display());
     }
-    let controls = BatchControls { interrupt: interrupt_flag(), max_hours, quiet: a.quiet };
-    let ending = batch::run(&dir, &|d: &Path| a.exec.executor(d), &controls)?;
+    let budget = Budget::new(interrupt_flag(), max_hours);
+    let ending = batch::run(&dir, &|d: &Path| a.exec.executor(d), &budget, a.quiet)?;
     eprintln!("summary: {}", dir.join("summary.md").display());
-    match ending {
-        BatchEnding::Done { failed: 0 } => Ok(Outcome::Success),
-        BatchEnding::Done { failed } => {
-            eprintln!("{failed} job(s) failed (see the summary)");
-            Ok(Outcome::Failed)
-        }
-        BatchEnding::Stopped(reason) => {
-            eprintln!("stopped ({reason}): resume with  bfqi-ga batch --resume {}", dir.display());
-            Ok(stopped())
-        }
-    }
+    Ok(outcome(&ending, &format!("bfqi-ga batch --resume {}", dir.display())))
 }
 
 pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
@@ -261,17 +248,18 @@ pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
 }
 
 pub(super) fn report(a: ReportArgs) -> Result<Outcome> {
-    if a.dir.join("compare.json").is_file() {
-        let out = crate::report::comparison::regenerate(&a.dir)?;
-        eprintln!("wrote {} files into {}", out.files.len(), a.dir.display());
-    } else if a.dir.join("spec.json").is_file() {
-        let n = crate::report::search::write(&a.dir)?;
-        eprintln!(
-            "wrote fitness.csv, fitness.png, fitness.svg and report.md for {n} generations into {}",
-            a.dir.display()
-        );
-    } else {
-        anyhow::bail!("{}: not a comparison or search run directory (no compare.json or spec.json)", a.dir.display());
+    match crate::runs::kind(&a.dir)? {
+        RunKind::Compare => {
+            let out = crate::report::comparison::regenerate(&a.dir)?;
+            eprintln!("wrote {} files into {}", out.files.len(), a.dir.display());
+        }
+        RunKind::Search => {
+            let n = crate::report::search::write(&a.dir)?;
+            eprintln!(
+                "wrote fitness.csv, fitness.png, fitness.svg and report.md for {n} generations into {}",
+                a.dir.display()
+            );
+        }
     }
     Ok(Outcome::Success)
 }

@@ -11,6 +11,7 @@ pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StatusArgs, Valid
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
 
+use crate::run_dir::{Ending, Stop};
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
@@ -94,11 +95,22 @@ pub fn run(cli: Cli) -> Result<Outcome> {
     }
 }
 
-/// A run stopped between units: `Interrupted` if Ctrl-C stopped it, else (a time budget) success.
-fn stopped() -> Outcome {
-    if crate::exec::interrupt_flag().load(std::sync::atomic::Ordering::SeqCst) {
-        Outcome::Interrupted
-    } else {
-        Outcome::Success
+/// The outcome of a run's ending, saying on stderr how a stopped run resumes (`resume`): a stop by
+/// Ctrl-C is `Interrupted`, one by the time budget a success, units missing a failure.
+fn outcome(ending: &Ending, resume: &str) -> Outcome {
+    match ending {
+        Ending::Finished(_) => Outcome::Success,
+        Ending::Failed(why) => {
+            eprintln!("{why}");
+            Outcome::Failed
+        }
+        Ending::Stopped(stop) => {
+            eprintln!("stopped ({stop}): resume with  {resume}");
+            match stop {
+                Stop::Interrupted => Outcome::Interrupted,
+                Stop::Budget(_) => Outcome::Success,
+                Stop::Missing(_) => Outcome::Failed,
+            }
+        }
     }
 }

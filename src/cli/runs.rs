@@ -205,6 +205,6 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
 }
 
 pub(super) fn worker(a: WorkerArgs) -> Result<Outcome> {
-    crate::exec::worker(&a.dir, &a.unit)?;
+    crate::runs::worker(&a.dir, &a.unit)?;
     Ok(Outcome::Success)
 }

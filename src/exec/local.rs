@@ -8,8 +8,9 @@
 
 use super::Executor;
 use crate::error::Result;
+use crate::run_dir::{Budget, Stop, Units};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Runs units on the rayon pool (`--jobs` threads).
 #[derive(Debug, Default, Clone, Copy)]
@@ -18,23 +19,29 @@ pub struct Local;
 impl Executor for Local {
     fn run(
         &self,
+        units: &dyn Units,
         ids: &[String],
-        work: &(dyn Fn(&str) -> Result<()> + Sync),
+        budget: &Budget<'_>,
         done: &(dyn Fn(&str) + Sync),
-        stop: &AtomicBool,
-    ) -> Result<()> {
+    ) -> Result<Option<Stop>> {
         let next = AtomicUsize::new(0);
         let first_error = Mutex::new(None);
+        let stopped = Mutex::new(None);
         let workers = rayon::current_num_threads().min(ids.len());
         rayon::scope(|s| {
             for _ in 0..workers {
                 s.spawn(|_| {
                     loop {
-                        if stop.load(Ordering::SeqCst) || first_error.lock().expect("error slot").is_some() {
+                        if first_error.lock().expect("error slot").is_some() {
+                            return;
+                        }
+                        // Checked before every unit, so a budget ends the run between units.
+                        if let Some(stop) = budget.check() {
+                            stopped.lock().expect("stop slot").get_or_insert(stop);
                             return;
                         }
                         let Some(id) = ids.get(next.fetch_add(1, Ordering::SeqCst)) else { return };
-                        match work(id) {
+                        match units.compute(id) {
                             Ok(()) => done(id),
                             Err(e) => {
                                 first_error.lock().expect("error slot").get_or_insert(e);
@@ -47,7 +54,7 @@ impl Executor for Local {
         });
         match first_error.into_inner().expect("error slot") {
             Some(e) => Err(e),
-            None => Ok(()),
+            None => Ok(stopped.into_inner().expect("stop slot")),
         }
     }
 }

@@ -9,10 +9,10 @@
 
 use super::Executor;
 use crate::error::{Error, Result};
+use crate::run_dir::{Budget, Stop, Units};
 use crate::store::{self, write_atomic};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Settings of the Slurm executor.
 #[derive(Debug, Clone, PartialEq)]
@@ -53,10 +53,6 @@ impl Slurm {
             binary,
             sbatch: std::env::var("BFQI_SBATCH").unwrap_or_else(|_| "sbatch".into()),
         })
-    }
-
-    fn result_path(&self, id: &str) -> PathBuf {
-        self.run_dir.join("units").join(format!("{id}.json"))
     }
 
     /// Submits one array over `ids` and waits for it. Returns, for each id, the log file of its task,
@@ -120,49 +116,56 @@ fn shell_quote(p: &Path) -> String {
 impl Executor for Slurm {
     fn run(
         &self,
+        units: &dyn Units,
         ids: &[String],
-        _work: &(dyn Fn(&str) -> Result<()> + Sync),
+        budget: &Budget<'_>,
         done: &(dyn Fn(&str) + Sync),
-        stop: &AtomicBool,
-    ) -> Result<()> {
-        let mut missing: Vec<String> = ids.iter().filter(|id| !self.result_path(id).is_file()).cloned().collect();
+    ) -> Result<Option<Stop>> {
+        // The units are computed by `bfqi-ga worker` on the nodes; here they are only looked up.
+        let mut missing: Vec<String> = ids.iter().filter(|id| !units.stored(id)).cloned().collect();
         for id in ids.iter().filter(|id| !missing.contains(id)) {
             done(id);
         }
         let mut last: Vec<(String, PathBuf)> = Vec::new();
         let mut said = String::new();
         for attempt in 0..=self.retries {
-            if missing.is_empty() || stop.load(Ordering::SeqCst) {
+            if missing.is_empty() {
                 break;
+            }
+            if let Some(stop) = budget.check() {
+                return Ok(Some(stop));
             }
             let (logs, stderr) = self.submit(&missing, attempt)?;
             said = stderr;
             last = missing.iter().cloned().zip(logs).collect();
             missing.retain(|id| {
-                let there = self.result_path(id).is_file();
+                let there = units.stored(id);
                 if there {
                     done(id);
                 }
                 !there
             });
         }
-        if !missing.is_empty() && !stop.load(Ordering::SeqCst) {
-            let shown: Vec<String> = last
-                .iter()
-                .filter(|(id, _)| missing.contains(id))
-                .take(5)
-                .map(|(id, log)| format!("{id} (log {})", log.display()))
-                .collect();
-            let said = if said.is_empty() { String::new() } else { format!("; sbatch said: {said}") };
-            // The run failed (exit 1), it is not bad input: resumable once the cause is fixed.
-            return Err(Error::Failed(format!(
-                "{}: {} unit(s) still missing after {} submission(s): {}{said}",
-                self.run_dir.display(),
-                missing.len(),
-                self.retries + 1,
-                shown.join(", ")
-            )));
+        if missing.is_empty() {
+            return Ok(None);
         }
-        Ok(())
+        if let Some(stop) = budget.check() {
+            return Ok(Some(stop));
+        }
+        let shown: Vec<String> = last
+            .iter()
+            .filter(|(id, _)| missing.contains(id))
+            .take(5)
+            .map(|(id, log)| format!("{id} (log {})", log.display()))
+            .collect();
+        let said = if said.is_empty() { String::new() } else { format!("; sbatch said: {said}") };
+        // The run failed (exit 1), it is not bad input: resumable once the cause is fixed.
+        Err(Error::Failed(format!(
+            "{}: {} unit(s) still missing after {} submission(s): {}{said}",
+            self.run_dir.display(),
+            missing.len(),
+            self.retries + 1,
+            shown.join(", ")
+        )))
     }
 }

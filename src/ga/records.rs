@@ -84,12 +84,26 @@ pub struct IndividualRecord {
     /// Pruned (`search.prune`): its datasets stopped once their mean fell below the cutoff.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub pruned: bool,
-    /// How it came about: `initial` (random), `seeded` (`--seed-config`), `elite` or `child`.
-    pub origin: String,
+    /// How it came about.
+    pub origin: Origin,
     /// A child's parents (their positions in the previous generation), its genes after the
     /// interval crossover and before mutation, and whether it was mutated (thesis Appendix C).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub birth: Option<Birth>,
+}
+
+/// How an individual came about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Origin {
+    /// Drawn at random for the first generation.
+    Initial,
+    /// Given (`--seed-config`, `search.seeded`) in the first generation.
+    Seeded,
+    /// Carried over unchanged from the previous generation.
+    Elite,
+    /// Bred from two parents of the previous generation.
+    Child,
 }
 
 impl IndividualRecord {
@@ -145,11 +159,34 @@ pub struct GenerationRecord {
     pub best_generation: usize,
 }
 
+/// Where a search stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// Running, or killed while running (then nobody holds its lock).
+    Running,
+    /// Ran to its end.
+    Finished,
+    /// Stopped early (Ctrl-C, the time budget); it resumes.
+    Interrupted,
+}
+
+impl Phase {
+    /// Its name, as `state.json` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Running => "running",
+            Phase::Finished => "finished",
+            Phase::Interrupted => "interrupted",
+        }
+    }
+}
+
 /// `state.json`: where a run stands.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunState {
-    /// `running`, `finished` or `interrupted`.
-    pub state: String,
+    /// Running, finished or interrupted.
+    pub state: Phase,
     /// Generations completed.
     pub generation: usize,
     /// Generations planned.

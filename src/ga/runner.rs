@@ -1,19 +1,18 @@
 //! Running a generation's units and keeping the search's time across invocations: the executor
-//! call with the budget and Ctrl-C checks, `state.json`, and the ETA.
+//! call, `state.json`, and the ETA.
 
 use super::chromosome::Decoded;
-use super::records::{IndividualRecord, RunState};
-use super::search::Controls;
+use super::records::{IndividualRecord, Phase, RunState};
 use super::units::{Evaluator, expected_cost, parse_unit_id, setting_id, unit_id};
 use crate::error::Result;
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
+use crate::run_dir::{Budget, Stop, Units};
 use crate::spec::Spec;
 use crate::store::{self, read_json, write_json};
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Timing of the search across invocations, for `state.json`, the progress line and the ETA.
@@ -112,18 +111,18 @@ impl Clock {
 
 /// What `state.json` says besides the timing.
 pub(super) struct StateInfo<'a> {
-    pub(super) state: &'a str,
+    pub(super) phase: Phase,
     pub(super) generation: usize,
     pub(super) best: Option<&'a IndividualRecord>,
     pub(super) reason: &'a str,
 }
 
 pub(super) fn write_state(dir: &Path, spec: &Spec, info: &StateInfo<'_>, clock: &Clock) -> Result<()> {
-    let running = info.state == "running";
+    let running = info.phase == Phase::Running;
     write_json(
         &dir.join("state.json"),
         &RunState {
-            state: info.state.into(),
+            state: info.phase,
             generation: info.generation,
             generations: spec.search.stop.generations,
             best_fitness: info.best.and_then(|b| b.fitness),
@@ -145,16 +144,11 @@ fn expected_seconds(ev: &Evaluator, ids: &[(Decoded, usize)]) -> Vec<(String, f6
     let s = &ev.spec().search;
     let mut known: HashMap<String, (f64, usize)> = HashMap::new();
     let mut ratios = Vec::new();
-    let dir = ev.unit_path("x");
-    if let Ok(entries) = std::fs::read_dir(dir.parent().expect("units folder")) {
-        for e in entries.flatten() {
-            let name = e.file_name().to_string_lossy().into_owned();
-            let Some(id) = name.strip_suffix(".json") else { continue };
-            let (Some((set, _)), Some(u)) = (parse_unit_id(id), ev.load_unit(id)) else { continue };
-            let k = known.entry(setting_id(&set)).or_insert((0.0, 0));
-            (k.0, k.1) = (k.0 + u.seconds, k.1 + 1);
-            ratios.push(u.seconds / expected_cost(&set, s.network.max_epochs).max(1e-9));
-        }
+    for id in ev.store().ids() {
+        let (Some((set, _)), Some(u)) = (parse_unit_id(&id), ev.load_unit(&id)) else { continue };
+        let k = known.entry(setting_id(&set)).or_insert((0.0, 0));
+        (k.0, k.1) = (k.0 + u.seconds, k.1 + 1);
+        ratios.push(u.seconds / expected_cost(&set, s.network.max_epochs).max(1e-9));
     }
     ratios.sort_by(f64::total_cmp);
     let per_cost = ratios.get(ratios.len() / 2).copied().unwrap_or(1.0);
@@ -168,33 +162,26 @@ fn expected_seconds(ev: &Evaluator, ids: &[(Decoded, usize)]) -> Vec<(String, f6
         .collect()
 }
 
-/// Runs the units `want` that are not stored yet, longest expected first. Returns false when the
-/// run must stop (interrupt, budget, or units missing afterwards), with the reason.
+/// Runs a generation's units through the executor, keeping the clock and `state.json` up to date.
 pub(super) struct Runner<'a> {
     pub(super) dir: &'a Path,
     pub(super) spec: &'a Spec,
     pub(super) ev: &'a Evaluator,
     pub(super) exec: &'a dyn Executor,
-    pub(super) controls: &'a Controls<'a>,
+    pub(super) budget: &'a Budget<'a>,
     pub(super) progress: &'a Progress,
-    pub(super) started: Instant,
-    pub(super) budget_hit: AtomicBool,
-    pub(super) stop: AtomicBool,
     pub(super) clock: Mutex<Clock>,
 }
 
 impl Runner<'_> {
-    pub(super) fn over_budget(&self) -> bool {
-        self.controls.max_hours.is_some_and(|h| self.started.elapsed().as_secs_f64() > h * 3600.0)
-    }
-
-    /// Evaluates the missing units among `want`; `Err(reason)` when the run has to stop.
+    /// Computes the units among `want` that are not stored yet, longest expected first. Returns why
+    /// the run must stop, if it must (Ctrl-C, the budget, or units missing afterwards).
     pub(super) fn run(
         &self,
         g: usize,
         want: &[(Decoded, usize)],
         best: Option<&IndividualRecord>,
-    ) -> Result<std::result::Result<(), String>> {
+    ) -> Result<Option<Stop>> {
         let missing: Vec<(Decoded, usize)> =
             want.iter().copied().filter(|(s, d)| self.ev.load_unit(&unit_id(s, *d)).is_none()).collect();
         let mut planned = expected_seconds(self.ev, &missing);
@@ -204,23 +191,6 @@ impl Runner<'_> {
         self.clock.lock().expect("clock").plan(&planned);
         self.progress.add_to_stage(planned.len() as u64);
         let ids: Vec<String> = planned.into_iter().map(|(id, _)| id).collect();
-        // Checked here too, for executors that do not call `work` (Slurm runs units elsewhere).
-        if self.over_budget() {
-            self.budget_hit.store(true, Ordering::SeqCst);
-            self.stop.store(true, Ordering::SeqCst);
-        }
-        let work = |id: &str| -> Result<()> {
-            if self.over_budget() {
-                self.budget_hit.store(true, Ordering::SeqCst);
-                self.stop.store(true, Ordering::SeqCst);
-                return Ok(());
-            }
-            if self.controls.interrupt.load(Ordering::SeqCst) {
-                self.stop.store(true, Ordering::SeqCst);
-                return Ok(());
-            }
-            self.ev.run_unit(id)
-        };
         let done = |id: &str| {
             let mut c = self.clock.lock().expect("clock");
             c.unit_done(id);
@@ -233,22 +203,14 @@ impl Runner<'_> {
             ));
             if c.last_write.is_none_or(|t| t.elapsed().as_secs_f64() > 5.0) {
                 c.last_write = Some(Instant::now());
-                let info = StateInfo { state: "running", generation: g, best, reason: "" };
+                let info = StateInfo { phase: Phase::Running, generation: g, best, reason: "" };
                 let _ = write_state(self.dir, self.spec, &info, &c);
             }
         };
-        self.exec.run(&ids, &work, &done, &self.stop)?;
-        let missing = ids.iter().any(|id| self.ev.load_unit(id).is_none());
-        if self.stop.load(Ordering::SeqCst) || self.controls.interrupt.load(Ordering::SeqCst) || missing {
-            let reason = if self.budget_hit.load(Ordering::SeqCst) {
-                format!("time budget of {} h reached", self.controls.max_hours.unwrap_or(0.0))
-            } else if self.controls.interrupt.load(Ordering::SeqCst) {
-                "interrupted".to_string()
-            } else {
-                "units missing after evaluation".to_string()
-            };
-            return Ok(Err(reason));
+        if let Some(stop) = self.exec.run(self.ev, &ids, self.budget, &done)? {
+            return Ok(Some(stop));
         }
-        Ok(Ok(()))
+        let missing = ids.iter().filter(|id| self.ev.load_unit(id).is_none()).count();
+        Ok((missing > 0).then_some(Stop::Missing(missing)))
     }
 }

@@ -15,7 +15,9 @@ use super::chromosome::{Chromosome, Decoded, decode};
 use super::operators::{Birth, initial_population, next_generation, rank};
 use super::prune;
 use super::records::finite;
-pub use super::records::{GenerationRecord, GenerationStats, IndividualRecord, Resumed, RunInfo, RunState, fitness};
+pub use super::records::{
+    GenerationRecord, GenerationStats, IndividualRecord, Origin, Phase, Resumed, RunInfo, RunState, fitness,
+};
 pub use super::reproduce::{Reproduction, reproduce};
 use super::runner::{Clock, Runner, StateInfo, write_state};
 pub use super::setup::{SearchOverrides, create, extend, load_spec, prepare, resolve};
@@ -25,33 +27,13 @@ use crate::error::{Error, Result};
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
 use crate::report::stats::summarize;
+use crate::run_dir::{Budget, Ending, UnitStore};
 use crate::spec::Spec;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
 use crate::tuned::TunedConfig;
 use std::collections::HashSet;
 use std::path::Path;
 use std::sync::Mutex;
-use std::sync::atomic::AtomicBool;
-use std::time::Instant;
-
-/// How a search ended.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Ending {
-    /// All done (generations reached, or stalled).
-    Finished(String),
-    /// Stopped early (Ctrl-C, time budget); resumable.
-    Interrupted(String),
-}
-
-/// Stop controls of one invocation.
-pub struct Controls<'a> {
-    /// Raised by Ctrl-C.
-    pub interrupt: &'a AtomicBool,
-    /// Wall-clock budget of this invocation, in hours.
-    pub max_hours: Option<f64>,
-    /// Suppress progress output.
-    pub quiet: bool,
-}
 
 /// The stored scores of setting `s` on datasets `0..n`, as far as they run without a gap.
 fn stored_scores(ev: &Evaluator, s: &Decoded, n: usize) -> Vec<Option<f64>> {
@@ -63,7 +45,7 @@ fn record_for(
     index: usize,
     c: &Chromosome,
     ev: &Evaluator,
-    origin: &str,
+    origin: Origin,
     birth: Option<Birth>,
     pruned: bool,
 ) -> Result<IndividualRecord> {
@@ -85,7 +67,7 @@ fn record_for(
         scores,
         fitness: finite(f),
         pruned,
-        origin: origin.to_string(),
+        origin,
         birth,
     })
 }
@@ -142,9 +124,10 @@ pub fn ga_seed(spec: &Spec) -> u64 {
     crate::rng::derive(spec.seed, &crate::rng::purpose::ga(spec.env.env().name()), &[])
 }
 
-/// Runs (or resumes) the search in `dir`. Unit results already stored are reused. A finished
-/// search whose spec has `search.validate` then validates its winner ([`super::validate`]).
-pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
+/// Runs (or resumes) the search in `dir` until it ends or `budget` says stop. Unit results already
+/// stored are reused. A finished search whose spec has `search.validate` then validates its winner
+/// ([`super::validate`]).
+pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
     let spec = load_spec(dir)?;
     let lock = RunLock::acquire(dir)?;
     let path = dir.join("run.json");
@@ -170,10 +153,9 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
     }
     // What a kill can leave: a deleted units/ is made again, and temporary files of interrupted
     // atomic writes are removed (the lock is ours, so no writer is alive).
-    store::create_dir(&dir.join("units"))?;
     store::remove_temporaries(dir)?;
-    store::remove_temporaries(&dir.join("units"))?;
-    let ending = run_generations(dir, &spec, exec, controls)?;
+    UnitStore::units(dir).prepare()?;
+    let ending = run_generations(dir, &spec, exec, budget, quiet)?;
     if matches!(ending, Ending::Finished(_)) {
         let state: RunState = read_json(&dir.join("state.json"))?;
         if state.best_fitness.is_none() {
@@ -186,8 +168,8 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
         }
     }
     if let (Ending::Finished(_), Some(rule)) = (&ending, &spec.search.validate) {
-        let v = super::validate::run(dir, rule, controls.quiet)?;
-        if !controls.quiet {
+        let v = super::validate::run(dir, rule, quiet)?;
+        if !quiet {
             eprintln!("validation: {}", v.note);
         }
         crate::report::search::write(dir)?;
@@ -196,34 +178,24 @@ pub fn run(dir: &Path, exec: &dyn Executor, controls: &Controls<'_>) -> Result<E
     Ok(ending)
 }
 
-fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Controls<'_>) -> Result<Ending> {
+fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
     let spec = spec.clone();
     let ev = Evaluator::new(spec.clone(), dir);
     // Fail early on a dataset that cannot be encoded (e.g. per_action on continuous actions).
     ev.dataset(0)?;
     let s = &spec.search;
-    let progress = Progress::new("generations", s.stop.generations as u64, controls.quiet);
+    let progress = Progress::new("generations", s.stop.generations as u64, quiet);
     progress.line(&format!("search {} → {}", spec.env.env().name(), dir.display()));
-    let runner = Runner {
-        dir,
-        spec: &spec,
-        ev: &ev,
-        exec,
-        controls,
-        progress: &progress,
-        started: Instant::now(),
-        budget_hit: AtomicBool::new(false),
-        stop: AtomicBool::new(false),
-        clock: Mutex::new(Clock::resume(dir)),
-    };
+    let runner =
+        Runner { dir, spec: &spec, ev: &ev, exec, budget, progress: &progress, clock: Mutex::new(Clock::resume(dir)) };
 
     let seed = ga_seed(&spec);
     let mut population = initial_population(seed, &s.genes, s.ga.population);
-    let mut origins = vec!["initial"; population.len()];
+    let mut origins = vec![Origin::Initial; population.len()];
     // Given configs take the first places; the other individuals keep their own random streams.
     for (i, c) in s.seeded.iter().enumerate() {
         population[i] = *c;
-        origins[i] = "seeded";
+        origins[i] = Origin::Seeded;
     }
     let mut births: Vec<Option<Birth>> = vec![None; population.len()];
     let mut records: Vec<GenerationRecord> = Vec::new();
@@ -238,7 +210,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
     {
         let c = runner.clock.lock().expect("clock");
         let info = StateInfo {
-            state: "running",
+            phase: Phase::Running,
             generation: c.generation_seconds.len().min(s.stop.generations),
             best: None,
             reason: "",
@@ -261,7 +233,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
             None => {
                 let want: Vec<(Decoded, usize)> =
                     distinct.iter().flat_map(|x| (0..s.datasets).map(move |d| (*x, d))).collect();
-                runner.run(g, &want, best.as_ref().map(|b| &b.0))?.err()
+                runner.run(g, &want, best.as_ref().map(|b| &b.0))?
             }
             Some(cutoff) => {
                 // Datasets in rounds: each round runs the next dataset of every setting still
@@ -271,8 +243,8 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
                 let mut stopped = None;
                 for r in 0..s.datasets {
                     let want: Vec<(Decoded, usize)> = open.iter().map(|x| (*x, r)).collect();
-                    if let Err(reason) = runner.run(g, &want, best.as_ref().map(|b| &b.0))? {
-                        stopped = Some(reason);
+                    if let Some(stop) = runner.run(g, &want, best.as_ref().map(|b| &b.0))? {
+                        stopped = Some(stop);
                         break;
                     }
                     open.retain(|x| {
@@ -294,13 +266,18 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
                 stopped
             }
         };
-        if let Some(reason) = stopped {
+        if let Some(stop) = stopped {
             progress.finish();
             let c = runner.clock.lock().expect("clock");
-            let info =
-                StateInfo { state: "interrupted", generation: g, best: best.as_ref().map(|b| &b.0), reason: &reason };
+            let reason = stop.to_string();
+            let info = StateInfo {
+                phase: Phase::Interrupted,
+                generation: g,
+                best: best.as_ref().map(|b| &b.0),
+                reason: &reason,
+            };
             write_state(dir, &spec, &info, &c)?;
-            return Ok(Ending::Interrupted(reason));
+            return Ok(Ending::Stopped(stop));
         }
 
         let mut individuals: Vec<IndividualRecord> = population
@@ -384,7 +361,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
             write_state(
                 dir,
                 &spec,
-                &StateInfo { state: "running", generation: g + 1, best: Some(&b), reason: "" },
+                &StateInfo { phase: Phase::Running, generation: g + 1, best: Some(&b), reason: "" },
                 &c,
             )?;
         }
@@ -412,7 +389,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
             write_state(
                 dir,
                 &spec,
-                &StateInfo { state: "finished", generation: g + 1, best: Some(&b), reason: &reason },
+                &StateInfo { phase: Phase::Finished, generation: g + 1, best: Some(&b), reason: &reason },
                 &c,
             )?;
             return Ok(Ending::Finished(reason));
@@ -420,7 +397,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
         if g + 1 < s.stop.generations {
             let (next, born) = next_generation(seed, g, &population, &fit, &eligible, &s.genes, &s.ga);
             let elites = next.len() - born.len();
-            origins = (0..next.len()).map(|i| if i < elites { "elite" } else { "child" }).collect();
+            origins = (0..next.len()).map(|i| if i < elites { Origin::Elite } else { Origin::Child }).collect();
             births = std::iter::repeat_n(None, elites).chain(born.into_iter().map(Some)).collect();
             population = next;
         }
@@ -429,7 +406,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, controls: &Cont
     let reason = format!("{} generations", s.stop.generations);
     let c = runner.clock.lock().expect("clock");
     let info = StateInfo {
-        state: "finished",
+        phase: Phase::Finished,
         generation: s.stop.generations,
         best: best.as_ref().map(|b| &b.0),
         reason: &reason,

@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 /// Creates the run directory contents of a new search.
 pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
-    store::create_dir(&dir.join("units"))?;
+    crate::run_dir::UnitStore::units(dir).prepare()?;
     write_json(&dir.join("spec.json"), spec)?;
     write_json(&dir.join("run.json"), info)
 }

@@ -1,6 +1,7 @@
 //! Where each search stands (`bfqi-ga status`): its run directories found under a folder, one line
 //! each.
 
+use super::records::Phase;
 use super::search::RunState;
 use crate::error::Result;
 use crate::progress::human;
@@ -34,9 +35,9 @@ pub fn line(dir: &Path) -> Result<String> {
         .and_then(|v| v["env"].as_str().map(String::from))
         .unwrap_or_else(|| "?".into());
     // A run whose lock nobody holds is not running, whatever it last wrote.
-    let state = match st.state.as_str() {
-        "running" if !RunLock::is_held(dir) => "interrupted".to_string(),
-        s => s.to_string(),
+    let state = match st.state {
+        Phase::Running if !RunLock::is_held(dir) => Phase::Interrupted,
+        s => s,
     };
     let best = st.best.map_or("—".into(), |b| {
         format!(
@@ -46,13 +47,13 @@ pub fn line(dir: &Path) -> Result<String> {
             b.patience
         )
     });
-    let timing = if st.state == "running" || st.units_total > 0 {
+    let timing = if st.state == Phase::Running || st.units_total > 0 {
         format!(
             "  units {}/{} · ran {} · ETA {}",
             st.units_done,
             st.units_total,
             human(st.elapsed()),
-            if state == "running" { st.eta_seconds.map_or("?".into(), human) } else { "— (resume it)".into() }
+            if state == Phase::Running { st.eta_seconds.map_or("?".into(), human) } else { "— (resume it)".into() }
         )
     } else {
         format!("  ran {}", human(st.elapsed()))
@@ -68,7 +69,7 @@ pub fn line(dir: &Path) -> Result<String> {
     Ok(format!(
         "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}",
         env,
-        state,
+        state.name(),
         st.generation,
         st.generations,
         st.best_fitness.map_or("—".into(), |f| format!("{f:.4}")),

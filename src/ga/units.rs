@@ -14,6 +14,7 @@ use crate::learn::actions::Encoded;
 use crate::learn::mlp::{Activation, MlpParams};
 use crate::model::{Model, ModelInfo, QFunction};
 use crate::rng;
+use crate::run_dir::{UnitStore, Units};
 use crate::spec::Spec;
 use crate::store::{read_json, write_json};
 use serde::{Deserialize, Serialize};
@@ -165,7 +166,7 @@ impl Role {
 pub struct Evaluator {
     spec: Spec,
     results_hash: String,
-    dir: PathBuf,
+    store: UnitStore,
     role: Role,
     data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
     warned: Mutex<std::collections::HashSet<String>>,
@@ -182,7 +183,7 @@ impl Evaluator {
         Evaluator {
             results_hash: spec.results_hash(),
             spec,
-            dir: dir.to_path_buf(),
+            store: UnitStore::named(dir, role.folder()),
             role,
             data: Mutex::new(HashMap::new()),
             warned: Mutex::new(Default::default()),
@@ -311,7 +312,7 @@ impl Evaluator {
 
     /// Where a unit's result is stored.
     pub fn unit_path(&self, id: &str) -> PathBuf {
-        self.dir.join(self.role.folder()).join(format!("{id}.json"))
+        self.store.path(id)
     }
 
     /// Computes a unit and stores it atomically.
@@ -357,6 +358,20 @@ impl Evaluator {
             Some(h) if *h != self.results_hash => Some(format!("computed under another spec (hash {h})")),
             _ => None,
         }
+    }
+}
+
+impl Units for Evaluator {
+    fn store(&self) -> &UnitStore {
+        &self.store
+    }
+
+    fn stored(&self, id: &str) -> bool {
+        self.load_unit(id).is_some()
+    }
+
+    fn compute(&self, id: &str) -> Result<()> {
+        self.run_unit(id)
     }
 }
 

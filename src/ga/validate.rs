@@ -14,6 +14,7 @@ use super::search::{fitness, load_spec};
 use super::units::{Evaluator, Role, expected_cost, setting_id, unit_id};
 use crate::error::{Error, Result, ensure};
 use crate::report::stats::{Summary, interval, summarize};
+use crate::run_dir::Units;
 use crate::store::{read_json, write_json};
 use crate::tuned::TunedConfig;
 use rayon::prelude::*;
@@ -139,7 +140,7 @@ pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
 
     let search = Evaluator::new(spec.clone(), dir);
     let validation = Evaluator::with_role(spec.clone(), dir, Role::Validation);
-    crate::store::create_dir(&dir.join("validation"))?;
+    validation.store().prepare()?;
     let s = &spec.search;
     let mut todo: Vec<(&Evaluator, String, f64)> = Vec::new();
     for (_, d) in &picks {

@@ -6,7 +6,7 @@
 use super::plot::FitnessRow;
 use super::stats::{Summary, interval, summarize};
 use crate::error::{Error, Result};
-use crate::ga::search::{GenerationRecord, RunState, describe, load_spec};
+use crate::ga::search::{GenerationRecord, Phase, RunState, describe, load_spec};
 use crate::ga::units::{Evaluator, unit_id};
 use crate::ga::validate::{self, Validation};
 use crate::progress::human;
@@ -109,16 +109,16 @@ fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
     match st {
         Some(st) => {
             let wall = human(st.elapsed());
-            match st.state.as_str() {
-                "finished" if st.reason == format!("{} generations", st.generations) => {
+            match st.state {
+                Phase::Finished if st.reason == format!("{} generations", st.generations) => {
                     format!("Finished after {gens}, the spec's limit. Wall time {wall}.")
                 }
-                "finished" => format!("Finished after {gens}: {}. Wall time {wall}.", st.reason),
-                "interrupted" => format!(
+                Phase::Finished => format!("Finished after {gens}: {}. Wall time {wall}.", st.reason),
+                Phase::Interrupted => format!(
                     "Stopped after {gens} and {} of generation {done}'s units ({}); `bfqi-ga search --resume` continues it. Wall time so far {wall}.",
                     st.units_done, st.reason
                 ),
-                _ => format!("Running, after {gens}. Wall time so far {wall}."),
+                Phase::Running => format!("Running, after {gens}. Wall time so far {wall}."),
             }
         }
         None => format!("{gens}; no state.json."),

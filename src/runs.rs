@@ -1,0 +1,60 @@
+//! Run directories by kind: a search (`spec.json`) or a comparison (`compare.json`), told apart
+//! here, above both, so that the layers below them (`run_dir`, `exec`) never name either. The Slurm
+//! worker's unit goes through here to the run that owns it.
+
+use crate::compare::Comparison;
+use crate::error::{Error, Result};
+use crate::ga::search::{Evaluator, load_spec};
+use crate::run_dir::Units;
+use std::path::Path;
+
+/// What a run directory holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunKind {
+    /// A GA search (`spec.json`).
+    Search,
+    /// A comparison (`compare.json`).
+    Compare,
+}
+
+/// The kind of the run in `dir`, from the file that defines it; an error names the directory.
+pub fn kind(dir: &Path) -> Result<RunKind> {
+    if dir.join("compare.json").is_file() {
+        Ok(RunKind::Compare)
+    } else if dir.join("spec.json").is_file() {
+        Ok(RunKind::Search)
+    } else {
+        Err(Error::File {
+            path: dir.to_path_buf(),
+            message: "not a comparison or search run directory (no compare.json or spec.json)".into(),
+        })
+    }
+}
+
+/// The units of the run in `dir`.
+pub fn units(dir: &Path) -> Result<Box<dyn Units>> {
+    Ok(match kind(dir)? {
+        RunKind::Search => Box::new(Evaluator::new(load_spec(dir)?, dir)),
+        RunKind::Compare => Box::new(Comparison::open(dir)?),
+    })
+}
+
+/// The worker side of the Slurm executor: computes unit `id` of the run in `dir` and stores it
+/// atomically. A unit already stored whole is left alone (a damaged one is computed again).
+pub fn worker(dir: &Path, id: &str) -> Result<()> {
+    if !dir.is_dir() {
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        return Err(Error::File {
+            path: dir.to_path_buf(),
+            message: format!(
+                "run directory not visible from this node ({}): it must be on a file system shared by the nodes",
+                host.trim()
+            ),
+        });
+    }
+    let units = units(dir)?;
+    if units.stored(id) {
+        return Ok(());
+    }
+    units.compute(id)
+}
