@@ -26,6 +26,7 @@ pub mod rollout;
 pub mod run_dir;
 pub mod runs;
 pub mod spec;
+pub mod stats;
 pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;

@@ -9,8 +9,8 @@
 use crate::env::{EnvConfig, MAX_STATE, draw_box};
 use crate::eval::{Episode, episode};
 use crate::learn::actions::argmax;
-use crate::report::stats::{Summary, summarize};
 use crate::rng::{purpose, stream};
+use crate::stats::{Summary, summarize};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 

@@ -5,6 +5,7 @@
 use crate::compare::Comparison;
 use crate::error::{Error, Result};
 use crate::ga::search::{Evaluator, load_spec};
+use crate::ga::validate::{self, ValidateRule, Validation};
 use crate::run_dir::Units;
 use std::path::Path;
 
@@ -57,4 +58,14 @@ pub fn worker(dir: &Path, id: &str) -> Result<()> {
         return Ok(());
     }
     units.compute(id)
+}
+
+/// Validates the winner of the search in `dir` ([`validate::run`]) when no search is running: the
+/// run's lock is taken first, so it never races a search (or another validation) writing the same
+/// directory; then the search's report is rebuilt with the validation in it.
+pub fn validate(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
+    let _lock = crate::store::RunLock::acquire(dir)?;
+    let v = validate::run(dir, rule, quiet)?;
+    crate::report::search::write(dir)?;
+    Ok(v)
 }

@@ -182,7 +182,7 @@ pub struct SearchSpec {
     /// After the last generation, re-score the hall of fame's top settings (and the thesis
     /// optimum) on fresh validation datasets; none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub validate: Option<crate::ga::validate::ValidateRule>,
+    pub validate: Option<ValidateRule>,
     /// Chromosomes placed first in generation 0 in place of random ones (`search --seed-config`),
     /// as Optuna's `enqueue_trial` does; none when absent.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -309,14 +309,33 @@ const BUILTIN: [(&str, &str); 3] = [
     ("bicycle", include_str!("../searches/bicycle.json")),
 ];
 
+/// `search.validate` of a spec: how many of the hall of fame's best settings to re-score, on how
+/// many validation datasets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidateRule {
+    /// Settings re-scored, best fitness first.
+    pub top: usize,
+    /// Validation datasets each is scored on.
+    pub datasets: usize,
+}
+
+impl ValidateRule {
+    /// Validates the rule; errors name the field.
+    pub fn validate(&self) -> Result<()> {
+        ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
+        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")
+    }
+}
+
 impl Spec {
     /// Validates every field; the error names the field path.
     pub fn validate(&self) -> Result<()> {
         self.env.validate()?;
         let horizon = self.env.env().horizon();
-        self.env.check_encoding("experiments.et.actions", self.experiments.et.actions)?;
-        self.env.check_encoding("experiments.mlp.actions", self.experiments.mlp.actions)?;
-        self.env.check_encoding("search.actions", self.search.actions)?;
+        self.experiments.et.actions.check_for(&self.env, "experiments.et.actions")?;
+        self.experiments.mlp.actions.check_for(&self.env, "experiments.mlp.actions")?;
+        self.search.actions.check_for(&self.env, "search.actions")?;
         self.experiments.et.validate(horizon).map_err(|e| e.within("experiments.et"))?;
         self.experiments.mlp.validate(horizon).map_err(|e| e.within("experiments.mlp"))?;
         self.search.validate(horizon).map_err(|e| e.within("search"))

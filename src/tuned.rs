@@ -8,6 +8,7 @@ use crate::learn::Learner;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::{Activation, MlpParams};
 use crate::spec::Spec;
+use crate::stats::Summary;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -53,7 +54,7 @@ pub struct TunedConfig {
     pub spec: Option<Spec>,
     /// How the setting scored on the validation datasets (`search.validate`), when validated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub validation: Option<crate::ga::validate::ValidationSummary>,
+    pub validation: Option<ValidationSummary>,
 }
 
 /// Built-in copies of the thesis's tuned configs.
@@ -181,4 +182,18 @@ mod tests {
         let e = TunedConfig::parse(&v.to_string(), Path::new("t.json")).unwrap_err().to_string();
         assert!(e.contains("network.hidden"), "{e}");
     }
+}
+
+/// The validation summary kept in `best.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ValidationSummary {
+    /// Validation datasets.
+    pub datasets: usize,
+    /// The tuned setting's scores on them (`None` = diverged).
+    pub scores: Vec<Option<f64>>,
+    /// Their mean and 95 % interval.
+    pub summary: Option<Summary>,
+    /// What the validation found (see `validation.json`).
+    pub note: String,
 }

@@ -218,10 +218,10 @@ pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
 }
 
 pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
-    use crate::ga::validate::{self, ValidateRule};
-    let rule = ValidateRule::for_search(&a.dir, a.top, a.datasets)?;
-    let v = validate::run_alone(&a.dir, &rule, a.quiet)?;
-    let ci = |s: &Option<crate::report::stats::Summary>| crate::report::stats::interval(*s, 4);
+    use crate::ga::validate;
+    let rule = validate::rule_for_search(&a.dir, a.top, a.datasets)?;
+    let v = crate::runs::validate(&a.dir, &rule, a.quiet)?;
+    let ci = |s: &Option<crate::stats::Summary>| crate::stats::interval(*s, 4);
     println!("{:<22} {:<24} {:>20} {:>20}", "", "setting", "search datasets", "validation");
     for e in &v.entries {
         let tag = if e.setting == v.tuned { format!("{} (tuned)", e.source) } else { e.source.clone() };

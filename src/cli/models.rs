@@ -141,10 +141,10 @@ pub(super) fn fitness(a: FitnessArgs) -> Result<Outcome> {
         println!("  dataset {:>2}: {score:>12}   {:>7} epochs", u.dataset, u.epochs);
     }
     let finite: Vec<f64> = scores.iter().flatten().copied().collect();
-    let summary = crate::report::stats::summarize(&finite).filter(|_| r.fitness.is_some());
+    let summary = crate::stats::summarize(&finite).filter(|_| r.fitness.is_some());
     println!(
         "fitness {}  (95 % interval over datasets; exact {})",
-        crate::report::stats::interval(summary, 4),
+        crate::stats::interval(summary, 4),
         r.fitness.map_or("−∞".into(), |f| format!("{f:?}"))
     );
     if let Some(f) = t.fitness.filter(|_| t.spec.as_ref().is_some_and(|ts| ts.hash() == spec.hash())) {
@@ -244,8 +244,8 @@ pub(super) fn evaluate(a: EvaluateArgs) -> Result<Outcome> {
         "{} episodes from {} starts, ≤ {steps} steps: score {}, steps {}, failures {}/{}",
         r.episodes,
         serde_json::to_value(a.start)?.as_str().unwrap_or("?"),
-        crate::report::stats::interval(Some(r.score), 4),
-        crate::report::stats::interval(Some(r.steps), 1),
+        crate::stats::interval(Some(r.score), 4),
+        crate::stats::interval(Some(r.steps), 1),
         r.failures,
         r.episodes
     );

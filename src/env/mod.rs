@@ -231,20 +231,6 @@ impl EnvConfig {
         let mut rng = crate::rng::stream(0, crate::rng::purpose::ENV_CHECK_ACTIONS, &[]);
         (0..64).all(|_| env.actions().contains(&env.dataset_action(&mut rng)))
     }
-
-    /// Refuses the `per_action` encoding for continuous dataset actions, naming `field`.
-    pub fn check_encoding(&self, field: &str, encoding: crate::learn::actions::ActionEncoding) -> Result<()> {
-        let per_action = encoding == crate::learn::actions::ActionEncoding::PerAction;
-        ensure(
-            !per_action || self.discrete_dataset_actions(),
-            field,
-            "per_action",
-            &format!(
-                "needs discrete dataset actions; {}'s random policy takes continuous ones (use input)",
-                self.env().name()
-            ),
-        )
-    }
 }
 
 /// Validates settings shared by every environment: positive finite constants, γ in (0, 1].

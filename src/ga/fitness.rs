@@ -96,7 +96,7 @@ pub fn train(spec: &Spec, t: &TunedConfig, origin: &Path, d: usize) -> Result<(U
         Some(m) => Ok((unit, m)),
         None => Err(Error::Data(format!(
             "{} diverged on search dataset {d}: there is no policy to look at",
-            crate::ga::search::describe(&unit.setting)
+            super::units::describe(&unit.setting)
         ))),
     }
 }
@@ -134,7 +134,7 @@ impl TunedUnit {
     pub fn describe(&self, d: usize) -> String {
         format!(
             "training {} on search dataset {d} as its search unit did ({} K={})…",
-            super::search::describe(&setting_of(&self.tuned)),
+            super::units::describe(&setting_of(&self.tuned)),
             self.spec.search.algorithm.name(),
             self.spec.search.iterations
         )

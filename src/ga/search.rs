@@ -21,14 +21,14 @@ pub use super::records::{
 pub use super::reproduce::{Reproduction, reproduce};
 use super::runner::{Clock, Runner, StateInfo, write_state};
 pub use super::setup::{SearchOverrides, create, extend, load_spec, prepare, resolve};
-pub use super::units::{Evaluator, UnitResult, parse_unit_id, unit_id};
-use super::units::{activation_name, setting_id};
+use super::units::setting_id;
+pub use super::units::{Evaluator, UnitResult, describe, parse_unit_id, unit_id};
 use crate::error::{Error, Result};
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
-use crate::report::stats::summarize;
 use crate::run_dir::{Budget, Ending, UnitStore};
 use crate::spec::Spec;
+use crate::stats::summarize;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
 use crate::tuned::TunedConfig;
 use std::collections::HashSet;
@@ -84,11 +84,6 @@ fn stats(records: &[IndividualRecord]) -> GenerationStats {
         diverged: records.len() - f.len() - pruned,
         pruned,
     }
-}
-
-/// A setting for humans: `tanh δ_min 0.00059 patience 311`.
-pub fn describe(d: &Decoded) -> String {
-    format!("{} δ_min {} patience {}", activation_name(d.activation), d.delta_min, d.patience)
 }
 
 /// The tuned config of the best individual.

@@ -3,7 +3,7 @@
 
 use super::chromosome::{Chromosome, Decoded, GeneRanges};
 use super::records::RunInfo;
-use super::search::describe;
+use super::units::describe;
 use crate::error::{Error, Result};
 use crate::spec::Spec;
 use crate::store::{self, write_json};

@@ -84,6 +84,11 @@ fn activation_code(a: Activation) -> u64 {
     }
 }
 
+/// A setting for humans: `tanh δ_min 0.00059 patience 311`.
+pub fn describe(d: &Decoded) -> String {
+    format!("{} δ_min {} patience {}", activation_name(d.activation), d.delta_min, d.patience)
+}
+
 /// The name of a setting, e.g. `sigmoid_5.8e-1_601`: activation, δ_min (shortest round-trip
 /// form, so it parses back to the same double) and patience.
 pub fn setting_id(s: &Decoded) -> String {

@@ -10,51 +10,19 @@
 //! `units/`), so running it again only reads them.
 
 use super::chromosome::Decoded;
-use super::search::{fitness, load_spec};
+use super::records::fitness;
+use super::setup::load_spec;
 use super::units::{Evaluator, Role, expected_cost, setting_id, unit_id};
-use crate::error::{Error, Result, ensure};
-use crate::report::stats::{Summary, interval, summarize};
+use crate::error::{Error, Result};
 use crate::run_dir::Units;
+pub use crate::spec::ValidateRule;
+use crate::stats::{Summary, interval, summarize};
 use crate::store::{read_json, write_json};
 use crate::tuned::TunedConfig;
+pub use crate::tuned::ValidationSummary;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// `search.validate` of a spec: how many of the hall of fame's best settings to re-score, on how
-/// many validation datasets.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ValidateRule {
-    /// Settings re-scored, best fitness first.
-    pub top: usize,
-    /// Validation datasets each is scored on.
-    pub datasets: usize,
-}
-
-impl ValidateRule {
-    /// The rule `validate` applies to the search in `dir`: its spec's `search.validate`, with
-    /// `top` and `datasets` given in its place; both are needed when the spec has none.
-    pub fn for_search(dir: &Path, top: Option<usize>, datasets: Option<usize>) -> Result<ValidateRule> {
-        let spec = super::search::load_spec(dir)?;
-        match (&spec.search.validate, top, datasets) {
-            (_, Some(top), Some(datasets)) => Ok(ValidateRule { top, datasets }),
-            (Some(r), top, datasets) => {
-                Ok(ValidateRule { top: top.unwrap_or(r.top), datasets: datasets.unwrap_or(r.datasets) })
-            }
-            (None, _, _) => Err(crate::error::Error::Usage(format!(
-                "{}: its spec has no search.validate; give both --top and --datasets (e.g. --top 5 --datasets 10)",
-                dir.join("spec.json").display()
-            ))),
-        }
-    }
-
-    /// Validates the rule; errors name the field.
-    pub fn validate(&self) -> Result<()> {
-        ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
-        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")
-    }
-}
 
 /// One setting's figures on the search and the validation datasets.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -93,18 +61,20 @@ pub struct Validation {
     pub note: String,
 }
 
-/// The validation summary kept in `best.json`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ValidationSummary {
-    /// Validation datasets.
-    pub datasets: usize,
-    /// The tuned setting's scores on them (`None` = diverged).
-    pub scores: Vec<Option<f64>>,
-    /// Their mean and 95 % interval.
-    pub summary: Option<Summary>,
-    /// What the validation found (see `validation.json`).
-    pub note: String,
+/// The rule `validate` applies to the search in `dir`: its spec's `search.validate`, with
+/// `top` and `datasets` given in its place; both are needed when the spec has none.
+pub fn rule_for_search(dir: &Path, top: Option<usize>, datasets: Option<usize>) -> Result<ValidateRule> {
+    let spec = load_spec(dir)?;
+    match (&spec.search.validate, top, datasets) {
+        (_, Some(top), Some(datasets)) => Ok(ValidateRule { top, datasets }),
+        (Some(r), top, datasets) => {
+            Ok(ValidateRule { top: top.unwrap_or(r.top), datasets: datasets.unwrap_or(r.datasets) })
+        }
+        (None, _, _) => Err(crate::error::Error::Usage(format!(
+            "{}: its spec has no search.validate; give both --top and --datasets (e.g. --top 5 --datasets 10)",
+            dir.join("spec.json").display()
+        ))),
+    }
 }
 
 fn summary(scores: &[Option<f64>]) -> Option<Summary> {
@@ -282,15 +252,6 @@ impl Validation {
 
 fn fmt(v: Option<f64>) -> String {
     v.map_or("−∞".into(), |x| format!("{x:.3}"))
-}
-
-/// [`run`] for a search that is not running: takes the run's lock first, so it never races a
-/// search (or another validation) writing the same directory, then rebuilds the report.
-pub fn run_alone(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
-    let _lock = crate::store::RunLock::acquire(dir)?;
-    let v = run(dir, rule, quiet)?;
-    crate::report::search::write(dir)?;
-    Ok(v)
 }
 
 /// The stored validation of a search, if it ran.

@@ -9,6 +9,7 @@
 
 use super::{FitInfo, Learner, NO_ROW, NextStates, Regressor, Rows};
 use crate::dataset::Dataset;
+use crate::env::EnvConfig;
 use crate::error::{Error, Result};
 use crate::rng;
 use rayon::prelude::*;
@@ -23,6 +24,21 @@ pub enum ActionEncoding {
     Input,
     /// One model per discrete action, on the state.
     PerAction,
+}
+
+impl ActionEncoding {
+    /// Refuses `per_action` for an environment whose dataset actions are continuous, naming `field`.
+    pub fn check_for(self, env: &EnvConfig, field: &str) -> Result<()> {
+        crate::error::ensure(
+            self != ActionEncoding::PerAction || env.discrete_dataset_actions(),
+            field,
+            "per_action",
+            &format!(
+                "needs discrete dataset actions; {}'s random policy takes continuous ones (use input)",
+                env.env().name()
+            ),
+        )
+    }
 }
 
 /// A dataset laid out for one encoding and one discrete action set.

@@ -3,7 +3,7 @@
 //! checks, and their thresholds, come from the spec file (`experiments.<learner>.claims`).
 
 use crate::error::{Result, ensure};
-use crate::report::stats::Summary;
+use crate::stats::Summary;
 use serde::{Deserialize, Serialize};
 
 /// A claim a spec asks a comparison to check, with the rule that decides it and its thresholds:

@@ -6,4 +6,3 @@ pub mod plot;
 pub mod policy;
 pub mod rollout;
 pub mod search;
-pub mod stats;

@@ -4,13 +4,14 @@
 //! that disagrees with its unit is refused, naming both) and to count each generation's epochs.
 
 use super::plot::FitnessRow;
-use super::stats::{Summary, interval, summarize};
 use crate::error::{Error, Result};
-use crate::ga::search::{GenerationRecord, Phase, RunState, describe, load_spec};
-use crate::ga::units::{Evaluator, unit_id};
+use crate::ga::records::{GenerationRecord, Phase, RunState};
+use crate::ga::setup::load_spec;
+use crate::ga::units::{Evaluator, describe, unit_id};
 use crate::ga::validate::{self, Validation};
 use crate::progress::human;
 use crate::spec::Spec;
+use crate::stats::{Summary, interval, summarize};
 use crate::store::{read_json, write_atomic};
 use std::collections::HashSet;
 use std::path::Path;

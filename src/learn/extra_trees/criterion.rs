@@ -1,8 +1,5 @@
-//! Variance arithmetic (sklearn's `MSE` criterion): a node's mean and variance, and each candidate's
-//! left-side count and target sum, with sums kept in fixed lanes so every kernel adds in one order.
-
-use super::kernels::Kernels;
-use super::splitter::{Candidate, NodeRows};
+//! Variance arithmetic (sklearn's `MSE` criterion): a node's mean and variance, and the left-side
+//! sums of a candidate, kept in fixed lanes so every kernel adds in one order.
 
 /// Rows with `x <= t` so far, their target sums in 32 lanes (lane k: rows ≡ k mod 32), and the
 /// total of the lanes once every row is in.
@@ -16,41 +13,6 @@ pub(super) struct LeftSums {
 impl Default for LeftSums {
     fn default() -> Self {
         LeftSums { lanes: [0.0; 32], count: 0, sum: 0.0 }
-    }
-}
-
-/// Rows per sweep step in [`count_sum_left`] (a multiple of 32): the step's targets (16 KiB) stay
-/// in L1 while every candidate's column passes over them.
-const SWEEP: usize = 2048;
-
-/// For each candidate, the rows of the node with `x <= thr` and the sum of their targets, left in
-/// `sums[i].count` and `sums[i].sum`.
-#[inline(always)]
-pub(super) fn count_sum_left<K: Kernels>(k: K, node: NodeRows<'_>, cands: &[Candidate], sums: &mut [LeftSums]) {
-    let NodeRows { x: src_x, n_all, start, ys } = node;
-    let n = ys.len();
-    if K::NODE_SUMS && n <= SWEEP {
-        // One sweep step: each candidate's lanes live in registers and are reduced there, in the
-        // same order as below (most nodes are small, and for them the trip through memory and the
-        // scalar reduction cost more than the counting).
-        for (c, s) in cands.iter().zip(sums.iter_mut()) {
-            let xs = &src_x[c.feat * n_all + start..c.feat * n_all + start + n];
-            (s.count, s.sum) = k.count_sum_node(xs, ys, c.thr);
-        }
-        return;
-    }
-    sums.fill(LeftSums::default());
-    let mut a = 0;
-    while a < n {
-        let b = (a + SWEEP).min(n);
-        for (c, s) in cands.iter().zip(sums.iter_mut()) {
-            let xs = &src_x[c.feat * n_all + start + a..c.feat * n_all + start + b];
-            k.count_sum_blocks(xs, &ys[a..b], c.thr, s);
-        }
-        a = b;
-    }
-    for s in sums.iter_mut() {
-        s.sum = lanes_total(&s.lanes);
     }
 }
 

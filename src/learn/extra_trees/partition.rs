@@ -1,7 +1,7 @@
 //! Moving a split node's rows to its children (sklearn's `DensePartitioner`): a stable partition
 //! of every column into the other buffer, which also takes each child's feature ranges.
 
-use super::kernels::Kernels;
+use super::kernels::{Kernels, Marks};
 use super::splitter::Split;
 
 /// A range with +0.0 for −0.0, so that it does not depend on the order the extrema were taken in
@@ -9,15 +9,6 @@ use super::splitter::Split;
 #[inline(always)]
 pub(super) fn canonical((lo, hi): (f32, f32)) -> (f32, f32) {
     (lo + 0.0, hi + 0.0)
-}
-
-/// Where a split sends each row of its node, as the kernels note it for the moves
-/// ([`Kernels::mark`]).
-pub(super) struct Marks {
-    /// Each row's destination, relative to the node's start (portable kernels).
-    pub(super) pos: Vec<u32>,
-    /// Which rows go left, 16 per mask (AVX-512 kernels).
-    pub(super) masks: Vec<u16>,
 }
 
 /// The partition's scratch memory and the children's ranges it takes (part of a workspace).

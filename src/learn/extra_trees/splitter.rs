@@ -1,7 +1,7 @@
 //! The Extra-Trees split rule (sklearn's `RandomSplitter`): one uniform threshold per feature, the
 //! best of them by variance reduction, and the `f32` thresholds it works with.
 
-use super::criterion::{LeftSums, count_sum_left};
+use super::criterion::{LeftSums, lanes_total};
 use super::kernels::Kernels;
 use crate::rng::{self, Rng};
 
@@ -139,4 +139,39 @@ pub(super) fn query_threshold(t: f32) -> f64 {
         f32::MAX as f64 + 2f64.powi(103)
     };
     if t.to_bits() & 1 == 0 { mid } else { mid.next_down() }
+}
+
+/// Rows per sweep step in [`count_sum_left`] (a multiple of 32): the step's targets (16 KiB) stay
+/// in L1 while every candidate's column passes over them.
+const SWEEP: usize = 2048;
+
+/// For each candidate, the rows of the node with `x <= thr` and the sum of their targets, left in
+/// `sums[i].count` and `sums[i].sum`.
+#[inline(always)]
+pub(super) fn count_sum_left<K: Kernels>(k: K, node: NodeRows<'_>, cands: &[Candidate], sums: &mut [LeftSums]) {
+    let NodeRows { x: src_x, n_all, start, ys } = node;
+    let n = ys.len();
+    if K::NODE_SUMS && n <= SWEEP {
+        // One sweep step: each candidate's lanes live in registers and are reduced there, in the
+        // same order as below (most nodes are small, and for them the trip through memory and the
+        // scalar reduction cost more than the counting).
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start..c.feat * n_all + start + n];
+            (s.count, s.sum) = k.count_sum_node(xs, ys, c.thr);
+        }
+        return;
+    }
+    sums.fill(LeftSums::default());
+    let mut a = 0;
+    while a < n {
+        let b = (a + SWEEP).min(n);
+        for (c, s) in cands.iter().zip(sums.iter_mut()) {
+            let xs = &src_x[c.feat * n_all + start + a..c.feat * n_all + start + b];
+            k.count_sum_blocks(xs, &ys[a..b], c.thr, s);
+        }
+        a = b;
+    }
+    for s in sums.iter_mut() {
+        s.sum = lanes_total(&s.lanes);
+    }
 }

@@ -5,7 +5,7 @@
 use crate::compare::{LearnerPlan, UnitRecord};
 use crate::experiment::DatasetResult;
 use crate::fqi::Algorithm;
-use crate::report::stats::{Summary, summarize};
+use crate::stats::{Summary, summarize};
 
 /// Summaries along an axis (iteration, complexity or dataset size); `None` where no dataset has a
 /// number (all diverged, or nothing stored).

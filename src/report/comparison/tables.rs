@@ -4,7 +4,7 @@
 use super::figures::{Line, Pair};
 use crate::compare::{Analysis, CompareConfig, LearnerPlan, UnitRecord};
 use crate::report::claims::{Claim, Verdict};
-use crate::report::stats::Summary;
+use crate::stats::Summary;
 use std::fmt::Write as _;
 
 /// The header of `summary.csv`.

@@ -5,7 +5,7 @@ use super::figures::{Line, Pair, last};
 use super::tables::axis_name;
 use crate::compare::LearnerPlan;
 use crate::report::claims::{self, Claim, ClaimSpec};
-use crate::report::stats::Summary;
+use crate::stats::Summary;
 
 /// Steps claims, from the last iteration's steps survived.
 pub fn iterations(c: &ClaimSpec, p: &Pair) -> Option<Claim> {

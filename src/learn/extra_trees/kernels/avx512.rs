@@ -3,9 +3,9 @@
 //! are many, and a scalar loop's unpredictable branches cost more than the vector work).
 
 use super::Kernels;
+use super::Marks;
 use crate::learn::cpu::Isa;
 use crate::learn::extra_trees::criterion::{LeftSums, mean_var_of_sums};
-use crate::learn::extra_trees::partition::Marks;
 use std::arch::x86_64::*;
 
 /// The AVX-512 kernels. Holding one proves that this CPU has every feature they are compiled with

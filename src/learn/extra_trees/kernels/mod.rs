@@ -10,8 +10,16 @@ pub(super) mod avx512;
 pub(super) mod portable;
 
 use super::criterion::{LeftSums, lanes_total};
-use super::partition::Marks;
 use crate::learn::cpu::{self, Isa};
+
+/// Where a split sends each row of its node, as the kernels note it for the moves
+/// ([`Kernels::mark`]).
+pub(super) struct Marks {
+    /// Each row's destination, relative to the node's start (portable kernels).
+    pub(super) pos: Vec<u32>,
+    /// Which rows go left, 16 per mask (AVX-512 kernels).
+    pub(super) masks: Vec<u16>,
+}
 
 /// The operations the builder's passes over a node's rows are made of. Every implementation gives
 /// the same bits (sums in the lanes of [`portable`], exact partitions and extrema); only the speed
