@@ -85,7 +85,7 @@ fn graph(src: &Path) -> BTreeMap<String, BTreeSet<String>> {
         .collect();
     let resolve = |path: &str| -> Option<String> {
         let parts: Vec<&str> = path.split("::").filter(|p| !p.is_empty()).collect();
-        (1..=parts.len()).map(|i| parts[..i].join("::")).filter(|c| modules.contains_key(c)).last()
+        (1..=parts.len()).rev().map(|i| parts[..i].join("::")).find(|c| modules.contains_key(c))
     };
     let mut deps: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
     for (m, f) in &modules {
