@@ -45,6 +45,11 @@ impl UnitStore {
         &self.folder
     }
 
+    /// The folder's name in the run directory (`units`, `validation`).
+    pub fn name(&self) -> &str {
+        self.folder.file_name().and_then(|n| n.to_str()).unwrap_or("units")
+    }
+
     /// Makes the folder ready for a run: created if missing (a deleted `units/` is made again), and
     /// cleared of the temporary files of atomic writes a kill interrupted. Call it with the run's
     /// lock held, so that no writer is alive.

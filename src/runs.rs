@@ -4,9 +4,11 @@
 
 use crate::compare::Comparison;
 use crate::error::{Error, Result};
+use crate::exec::Executor;
 use crate::ga::search::{Evaluator, load_spec};
-use crate::ga::validate::{self, ValidateRule, Validation};
-use crate::run_dir::Units;
+use crate::ga::units::Role;
+use crate::ga::validate::{self, ValidateRule};
+use crate::run_dir::{Budget, Units};
 use std::path::Path;
 
 /// What a run directory holds.
@@ -32,17 +34,27 @@ pub fn kind(dir: &Path) -> Result<RunKind> {
     }
 }
 
-/// The units of the run in `dir`.
-pub fn units(dir: &Path) -> Result<Box<dyn Units>> {
+/// The units of the run in `dir` stored in its folder `folder`: `units` (a search's or a
+/// comparison's), or `validation` (a search's validation units).
+pub fn units(dir: &Path, folder: &str) -> Result<Box<dyn Units>> {
+    let role = match folder {
+        "units" => Role::Search,
+        "validation" => Role::Validation,
+        other => return Err(Error::invalid("--units", other, "must be units or validation")),
+    };
     Ok(match kind(dir)? {
-        RunKind::Search => Box::new(Evaluator::new(load_spec(dir)?, dir)),
-        RunKind::Compare => Box::new(Comparison::open(dir)?),
+        RunKind::Search => Box::new(Evaluator::with_role(load_spec(dir)?, dir, role)),
+        RunKind::Compare if role == Role::Search => Box::new(Comparison::open(dir)?),
+        RunKind::Compare => {
+            return Err(Error::invalid("--units", folder, "a comparison stores its units in units"));
+        }
     })
 }
 
-/// The worker side of the Slurm executor: computes unit `id` of the run in `dir` and stores it
-/// atomically. A unit already stored whole is left alone (a damaged one is computed again).
-pub fn worker(dir: &Path, id: &str) -> Result<()> {
+/// The worker side of the Slurm executor: computes unit `id` (stored in the run's folder `folder`)
+/// of the run in `dir` and stores it atomically. A unit already stored whole is left alone (a
+/// damaged one is computed again).
+pub fn worker(dir: &Path, folder: &str, id: &str) -> Result<()> {
     if !dir.is_dir() {
         let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
         return Err(Error::File {
@@ -53,7 +65,7 @@ pub fn worker(dir: &Path, id: &str) -> Result<()> {
             ),
         });
     }
-    let units = units(dir)?;
+    let units = units(dir, folder)?;
     if units.stored(id) {
         return Ok(());
     }
@@ -63,9 +75,17 @@ pub fn worker(dir: &Path, id: &str) -> Result<()> {
 /// Validates the winner of the search in `dir` ([`validate::run`]) when no search is running: the
 /// run's lock is taken first, so it never races a search (or another validation) writing the same
 /// directory; then the search's report is rebuilt with the validation in it.
-pub fn validate(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
+pub fn validate(
+    dir: &Path,
+    rule: &ValidateRule,
+    exec: &dyn Executor,
+    budget: &Budget<'_>,
+    quiet: bool,
+) -> Result<validate::Outcome> {
     let _lock = crate::store::RunLock::acquire(dir)?;
-    let v = validate::run(dir, rule, quiet)?;
-    crate::report::search::write(dir)?;
-    Ok(v)
+    let outcome = validate::run(dir, rule, exec, budget, quiet)?;
+    if matches!(outcome, validate::Outcome::Validated(_)) {
+        crate::report::search::write(dir)?;
+    }
+    Ok(outcome)
 }

@@ -191,3 +191,30 @@ fn a_full_disk_fails_the_run_and_a_later_resume_works() {
         std::panic::resume_unwind(e);
     }
 }
+
+#[test]
+fn a_budget_stops_the_validation_and_a_resume_finishes_it() {
+    let d = empty_dir("resume", "validation-budget");
+    let dir = d.path().join("run");
+    assert!(search(&dir).status.success());
+    let whole: Value = json(dir.join("validation.json"));
+    // Drop the validation, then resume with a budget already spent: the generations replay from
+    // their units, and the validation stops before its first unit.
+    std::fs::remove_dir_all(dir.join("validation")).unwrap();
+    std::fs::remove_file(dir.join("validation.json")).unwrap();
+    let out = bin().args(["search", "--resume", dir.to_str().unwrap(), "--max-hours", "1e-9"]).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("stopped (time budget of 0.000000001 h reached)"), "{err}");
+    assert!(!dir.join("validation.json").exists(), "validated past the budget");
+    let state: Value = json(dir.join("state.json"));
+    assert_eq!(state["state"], "interrupted", "{state}");
+    assert!(std::fs::read_dir(dir.join("validation")).unwrap().next().is_none(), "a validation unit ran");
+    // Resumed without a budget, it validates, to the same numbers.
+    let out = resume(&dir);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let again: Value = json(dir.join("validation.json"));
+    assert_eq!(json(dir.join("state.json"))["state"], "finished");
+    assert_eq!(again["entries"], whole["entries"]);
+    assert_eq!(again["note"], whole["note"]);
+}

@@ -37,9 +37,18 @@ fn slurm_driver_matches_local_and_resubmits_a_lost_task() {
     ];
     let o = search(&slurm, &["--executor", "slurm", "--slurm-max-parallel", "2"], &env);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    for f in ["generations.jsonl", "best.json"] {
+    for f in ["generations.jsonl", "best.json", "validation.json"] {
         assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
     }
+    // The validation's units went to the cluster too, as units of the `validation` folder.
+    let scripts: Vec<String> = std::fs::read_dir(slurm.join("slurm"))
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with("array-"))
+        .map(|e| read(e.path()))
+        .collect();
+    assert!(scripts.iter().any(|s| s.contains("--units 'validation'")), "no validation array");
+    assert!(slurm.join("validation").read_dir().unwrap().count() > 0);
     // The lost task was resubmitted: more than one array for the first generation.
     let lists = std::fs::read_dir(slurm.join("slurm"))
         .unwrap()

@@ -116,6 +116,8 @@ pub struct ValidateArgs {
     /// Suppress progress output.
     #[arg(long)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub exec: exec::Options,
 }
 
 /// `bfqi-ga status`.
@@ -220,7 +222,14 @@ pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
 pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
     use crate::ga::validate;
     let rule = validate::rule_for_search(&a.dir, a.top, a.datasets)?;
-    let v = crate::runs::validate(&a.dir, &rule, a.quiet)?;
+    let exec = a.exec.executor(&a.dir)?;
+    let budget = Budget::new(interrupt_flag(), None);
+    let v = match crate::runs::validate(&a.dir, &rule, exec.as_ref(), &budget, a.quiet)? {
+        validate::Outcome::Validated(v) => v,
+        validate::Outcome::Stopped(stop) => {
+            return Ok(outcome(&Ending::Stopped(stop), &format!("bfqi-ga validate {}", a.dir.display())));
+        }
+    };
     let ci = |s: &Option<crate::stats::Summary>| crate::stats::interval(*s, 4);
     println!("{:<22} {:<24} {:>20} {:>20}", "", "setting", "search datasets", "validation");
     for e in &v.entries {

@@ -86,6 +86,10 @@ pub struct WorkerArgs {
     pub dir: PathBuf,
     /// The unit id (its result file stem).
     pub unit: String,
+    /// The run directory's folder the unit is stored in: `units`, or `validation` for a search's
+    /// validation units.
+    #[arg(long, default_value = "units")]
+    pub units: String,
 }
 
 pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
@@ -205,6 +209,6 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
 }
 
 pub(super) fn worker(a: WorkerArgs) -> Result<Outcome> {
-    crate::runs::worker(&a.dir, &a.unit)?;
+    crate::runs::worker(&a.dir, &a.units, &a.unit)?;
     Ok(Outcome::Success)
 }

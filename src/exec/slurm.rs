@@ -9,7 +9,7 @@
 
 use super::Executor;
 use crate::error::{Error, Result};
-use crate::run_dir::{Budget, Stop, Units};
+use crate::run_dir::{Budget, Stop, UnitStore, Units};
 use crate::store::{self, write_atomic};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -57,7 +57,7 @@ impl Slurm {
 
     /// Submits one array over `ids` and waits for it. Returns, for each id, the log file of its task,
     /// and what `sbatch` said on stderr.
-    fn submit(&self, ids: &[String], attempt: usize) -> Result<(Vec<PathBuf>, String)> {
+    fn submit(&self, units: &UnitStore, ids: &[String], attempt: usize) -> Result<(Vec<PathBuf>, String)> {
         let dir = self.run_dir.join("slurm");
         let logs = dir.join("logs");
         store::create_dir(&logs)?;
@@ -75,10 +75,11 @@ impl Slurm {
         })?;
         let script = dir.join(format!("array-{tag}.sh"));
         let body = format!(
-            "#!/bin/bash\n# One bfqi-ga unit per array task; the worker writes the result atomically.\nset -eu\nid=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" {list})\nexec {bin} worker {run} \"$id\"\n",
+            "#!/bin/bash\n# One bfqi-ga unit per array task; the worker writes the result atomically.\nset -eu\nid=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" {list})\nexec {bin} worker {run} \"$id\" --units {folder}\n",
             list = shell_quote(&list),
             bin = shell_quote(&self.binary),
             run = shell_quote(&self.run_dir),
+            folder = shell_quote(Path::new(units.name())),
         );
         write_atomic(&script, |w| w.write_all(body.as_bytes()))?;
         let mut cmd = Command::new(&self.sbatch);
@@ -135,7 +136,7 @@ impl Executor for Slurm {
             if let Some(stop) = budget.check() {
                 return Ok(Some(stop));
             }
-            let (logs, stderr) = self.submit(&missing, attempt)?;
+            let (logs, stderr) = self.submit(units.store(), &missing, attempt)?;
             said = stderr;
             last = missing.iter().cloned().zip(logs).collect();
             missing.retain(|id| {

@@ -163,9 +163,21 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
         }
     }
     if let (Ending::Finished(_), Some(rule)) = (&ending, &spec.search.validate) {
-        let v = super::validate::run(dir, rule, quiet)?;
-        if !quiet {
-            eprintln!("validation: {}", v.note);
+        match super::validate::run(dir, rule, exec, budget, quiet)? {
+            // The generations are complete: resuming replays them and goes on with the validation.
+            super::validate::Outcome::Stopped(stop) => {
+                let path = dir.join("state.json");
+                let mut state: RunState = read_json(&path)?;
+                state.state = Phase::Interrupted;
+                state.reason = format!("{stop}, during the validation");
+                write_json(&path, &state)?;
+                return Ok(Ending::Stopped(stop));
+            }
+            super::validate::Outcome::Validated(v) => {
+                if !quiet {
+                    eprintln!("validation: {}", v.note);
+                }
+            }
         }
         crate::report::search::write(dir)?;
     }

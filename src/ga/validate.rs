@@ -14,13 +14,13 @@ use super::records::fitness;
 use super::setup::load_spec;
 use super::units::{Evaluator, Role, expected_cost, setting_id, unit_id};
 use crate::error::{Error, Result};
-use crate::run_dir::Units;
+use crate::exec::Executor;
+use crate::run_dir::{Budget, Stop, Units};
 pub use crate::spec::ValidateRule;
 use crate::stats::{Summary, interval, summarize};
 use crate::store::{read_json, write_json};
 use crate::tuned::TunedConfig;
 pub use crate::tuned::ValidationSummary;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -87,10 +87,19 @@ struct HallEntry {
     decoded: Decoded,
 }
 
+/// What [`run`] came to.
+#[derive(Debug)]
+pub enum Outcome {
+    /// Every unit scored: the validation, also written to `validation.json` and `best.json`.
+    Validated(Validation),
+    /// Stopped between units (Ctrl-C, the time budget); running it again goes on where it stopped.
+    Stopped(Stop),
+}
+
 /// Re-scores the top settings of the search in `dir` (which must have finished at least one
-/// generation) and writes `validation.json` and `best.json`'s `validation`. Units already stored
-/// are read, not recomputed.
-pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
+/// generation) through `exec`, until `budget` says stop, and writes `validation.json` and
+/// `best.json`'s `validation`. Units already stored are read, not recomputed.
+pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Outcome> {
     rule.validate().map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
     let spec = load_spec(dir)?;
     let hall_path = dir.join("hall_of_fame.json");
@@ -112,28 +121,31 @@ pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
     let validation = Evaluator::with_role(spec.clone(), dir, Role::Validation);
     validation.store().prepare()?;
     let s = &spec.search;
-    let mut todo: Vec<(&Evaluator, String, f64)> = Vec::new();
-    for (_, d) in &picks {
-        let cost = expected_cost(d, s.network.max_epochs);
-        for k in 0..s.datasets {
-            todo.push((&search, unit_id(d, k), cost));
-        }
-        for k in 0..rule.datasets {
-            todo.push((&validation, unit_id(d, k), cost));
-        }
-    }
-    todo.retain(|(ev, id, _)| ev.load_unit(id).is_none());
-    // Longest first, so the last units do not leave a core idle.
-    todo.sort_by(|a, b| b.2.total_cmp(&a.2));
+    // Search-dataset units (of the thesis optimum, when the search never drew it) first, then the
+    // validation units; each list longest first, so the last units do not leave a core idle.
+    let todo = |ev: &Evaluator, n: usize| -> Vec<String> {
+        let mut ids: Vec<(String, f64)> = picks
+            .iter()
+            .flat_map(|(_, d)| (0..n).map(move |k| (unit_id(d, k), expected_cost(d, s.network.max_epochs))))
+            .filter(|(id, _)| !ev.stored(id))
+            .collect();
+        ids.sort_by(|a, b| b.1.total_cmp(&a.1));
+        ids.into_iter().map(|(id, _)| id).collect()
+    };
+    let (for_search, for_validation) = (todo(&search, s.datasets), todo(&validation, rule.datasets));
     if !quiet {
         eprintln!(
             "validating {} settings on {} validation datasets: {} units to run",
             picks.len(),
             rule.datasets,
-            todo.len()
+            for_search.len() + for_validation.len()
         );
     }
-    todo.par_iter().with_max_len(1).try_for_each(|(ev, id, _)| ev.run_unit(id))?;
+    for (ev, ids) in [(&search, &for_search), (&validation, &for_validation)] {
+        if let Some(stop) = exec.run(ev, ids, budget, &|_| {})? {
+            return Ok(Outcome::Stopped(stop));
+        }
+    }
 
     let scores = |ev: &Evaluator, d: &Decoded, n: usize| -> Result<Vec<Option<f64>>> {
         (0..n)
@@ -198,7 +210,7 @@ pub fn run(dir: &Path, rule: &ValidateRule, quiet: bool) -> Result<Validation> {
     write_json(&dir.join("validation.json"), &v)?;
     best.validation = v.summary_of(&tuned);
     write_json(&best_path, &best)?;
-    Ok(v)
+    Ok(Outcome::Validated(v))
 }
 
 impl Validation {

@@ -115,6 +115,10 @@ fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
                     format!("Finished after {gens}, the spec's limit. Wall time {wall}.")
                 }
                 Phase::Finished => format!("Finished after {gens}: {}. Wall time {wall}.", st.reason),
+                Phase::Interrupted if st.reason.ends_with("during the validation") => format!(
+                    "Generations done after {gens}; stopped in the validation ({}); `bfqi-ga search --resume` finishes it. Wall time so far {wall}.",
+                    st.reason.trim_end_matches(", during the validation")
+                ),
                 Phase::Interrupted => format!(
                     "Stopped after {gens} and {} of generation {done}'s units ({}); `bfqi-ga search --resume` continues it. Wall time so far {wall}.",
                     st.units_done, st.reason
