@@ -191,6 +191,11 @@ fn flags_and_every_job_of_a_plan_are_checked_before_anything_is_created() {
     refused(&d, &["batch", &ok_plan, "--until", "25:00"], &["invalid --until = 25:00"]);
     refused(&d, &["batch", &ok_plan, "--max-hours", "0"], &["invalid --max-hours"]);
     refused(&d, &["compare", "cartpole", "--datasets", "0", "--out", "cmp"], &["invalid datasets = 0"]);
+    // A resumed comparison is what its compare.json says: a request flag is refused, not ignored.
+    for flag in [["--datasets", "3"], ["--analysis", "all"], ["--tuned", "best.json"]] {
+        let args = ["compare", "--resume", "cmp", flag[0], flag[1]];
+        refused(&d, &args, &["'--resume <RUN_DIR>' cannot be used with", flag[0]]);
+    }
     nothing_created(&d, &["plan.json", "plan2.json", "ok.json"]);
 }
 

@@ -59,14 +59,20 @@ pub struct CompareArgs {
     /// Environment name (uses searches/<ENV>.json) or a spec file. Not needed with --resume.
     #[arg(required_unless_present = "resume")]
     pub env: Option<String>,
-    /// What to compare (ignored with --resume: the run directory has it).
+    /// What to compare (not with --resume: the run directory's compare.json has it).
     #[command(flatten)]
     pub request: compare::Request,
     /// Run directory (default: results/<env>/compare-<timestamp>).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Resume the comparison in this run directory.
-    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["env", "out"])]
+    /// Resume the comparison in this run directory (as its compare.json says: no request flags).
+    #[arg(
+        long,
+        value_name = "RUN_DIR",
+        conflicts_with_all = [
+            "env", "out", "tuned", "analysis", "learner", "datasets", "episodes", "iterations", "complexities", "sizes"
+        ]
+    )]
     pub resume: Option<PathBuf>,
     /// No progress output.
     #[arg(long)]
