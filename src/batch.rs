@@ -199,6 +199,16 @@ pub enum JobKind {
     Compare,
 }
 
+impl JobKind {
+    /// Its name, as `batch.json` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            JobKind::Search => "search",
+            JobKind::Compare => "compare",
+        }
+    }
+}
+
 /// Where a job stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -309,13 +319,7 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
             break;
         }
         if !quiet {
-            eprintln!(
-                "{} job {} of {n}: {} ({})",
-                store::now_utc().1,
-                i + 1,
-                job.name(),
-                job_kind_name(states[i].kind)
-            );
+            eprintln!("{} job {} of {n}: {} ({})", store::now_utc().1, i + 1, job.name(), states[i].kind.name());
         }
         let t = Instant::now();
         let job_dir = dir.join(job.name());
@@ -391,13 +395,6 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
     })
 }
 
-fn job_kind_name(k: JobKind) -> &'static str {
-    match k {
-        JobKind::Search => "search",
-        JobKind::Compare => "compare",
-    }
-}
-
 fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
     let mut md = String::from(
         "# Batch summary\n\n| job | kind | state | time | result | details |\n|---|---|---|---|---|---|\n",
@@ -414,7 +411,7 @@ fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
         md.push_str(&format!(
             "| {} | {} | {} | {} | {} | {} |\n",
             s.name,
-            job_kind_name(s.kind),
+            s.kind.name(),
             s.state.name(),
             crate::progress::human(s.seconds),
             s.result.replace('|', "/"),
