@@ -327,6 +327,17 @@ fn pruning_that_prunes_nothing_changes_nothing_and_pruning_is_recorded() {
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(c.join(f)), read(d.join(f)), "{f} differs after {stops} stops and resumes");
     }
+
+    // Each individual's datasets run as a chain, with no barrier between datasets: one thread or
+    // three, the same verdicts and the same search.
+    for jobs in ["1", "3"] {
+        let e = base.join(format!("eager-jobs{jobs}"));
+        let o = search_spec(&eager, &e, &[&eager_args[..8], &["--jobs", jobs]].concat());
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
+            assert_eq!(read(c.join(f)), read(e.join(f)), "{f} differs with --jobs {jobs}");
+        }
+    }
 }
 
 #[test]

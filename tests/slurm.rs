@@ -58,6 +58,23 @@ fn slurm_driver_matches_local_and_resubmits_a_lost_task() {
 }
 
 #[test]
+fn a_pruned_search_through_slurm_matches_local() {
+    // Pruned generations run each individual's datasets as chains: locally with no barrier, on
+    // Slurm as one array per round of links. Same verdicts, same search.
+    let d = tmp("pruned");
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    let o = search(&local, &["--prune"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_STATE", d.join("state").display().to_string())];
+    let o = search(&slurm, &["--prune", "--executor", "slurm"], &env);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["generations.jsonl", "best.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
+    }
+    assert!(read(slurm.join("generations.jsonl")).contains("prune_below"), "no pruned generation ran");
+}
+
+#[test]
 fn a_unit_that_always_fails_is_reported_with_its_log() {
     let d = tmp("always");
     let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_DROP_ALWAYS", "0".to_string())];

@@ -23,7 +23,41 @@ pub trait Executor: Sync {
         budget: &Budget<'_>,
         done: &(dyn Fn(&str) + Sync),
     ) -> Result<Option<Stop>>;
+
+    /// Gets chains of units computed, where a unit may open further ones: starts with `first`, and
+    /// once each unit is stored, `done` returns the units it opens, which join the queue. Among the
+    /// units waiting, the one with the highest priority starts first (ties: the one queued first).
+    /// Returns once nothing waits and nothing runs, or at a stop, as [`Executor::run`].
+    ///
+    /// This default runs rounds (everything queued, then everything those opened), which suits an
+    /// executor that submits batches; the local executor starts opened units at once instead.
+    fn run_chained(
+        &self,
+        units: &dyn Units,
+        first: Vec<Queued>,
+        budget: &Budget<'_>,
+        done: &(dyn Fn(&str) -> Vec<Queued> + Sync),
+    ) -> Result<Option<Stop>> {
+        let mut round = first;
+        while !round.is_empty() {
+            round.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let ids: Vec<String> = round.into_iter().map(|(id, _)| id).collect();
+            let opened = std::sync::Mutex::new(Vec::new());
+            let note = |id: &str| {
+                let more = done(id);
+                opened.lock().expect("opened").extend(more);
+            };
+            if let Some(stop) = self.run(units, &ids, budget, &note)? {
+                return Ok(Some(stop));
+            }
+            round = opened.into_inner().expect("opened");
+        }
+        Ok(None)
+    }
 }
+
+/// A unit to start, by id, with its priority in the queue of [`Executor::run_chained`].
+pub type Queued = (String, f64);
 
 use crate::error::Error;
 use std::path::Path;

@@ -5,7 +5,7 @@ use super::chromosome::Decoded;
 use super::records::{IndividualRecord, Phase, RunState};
 use super::units::{Evaluator, expected_cost, parse_unit_id, setting_id, unit_id};
 use crate::error::Result;
-use crate::exec::Executor;
+use crate::exec::{Executor, Queued};
 use crate::progress::{Progress, human};
 use crate::run_dir::{Budget, Stop, Units};
 use crate::spec::Spec;
@@ -191,26 +191,81 @@ impl Runner<'_> {
         self.clock.lock().expect("clock").plan(&planned);
         self.progress.add_to_stage(planned.len() as u64);
         let ids: Vec<String> = planned.into_iter().map(|(id, _)| id).collect();
-        let done = |id: &str| {
-            let mut c = self.clock.lock().expect("clock");
-            c.unit_done(id);
-            let eta = c.eta(g, self.spec.search.stop.generations);
-            let gen_left = c.projected_generation().map(|p| (p - c.current()).max(0.0));
-            self.progress.unit_done(&format!(
-                "gen ≈ {} left · search ≈ {} left",
-                gen_left.map_or("?".into(), human),
-                eta.map_or("?".into(), human)
-            ));
-            if c.last_write.is_none_or(|t| t.elapsed().as_secs_f64() > 5.0) {
-                c.last_write = Some(Instant::now());
-                let info = StateInfo { phase: Phase::Running, generation: g, best, reason: "" };
-                let _ = write_state(self.dir, self.spec, &info, &c);
-            }
-        };
+        let done = |id: &str| self.unit_done(g, id, best);
         if let Some(stop) = self.exec.run(self.ev, &ids, self.budget, &done)? {
             return Ok(Some(stop));
         }
         let missing = ids.iter().filter(|id| self.ev.load_unit(id).is_none()).count();
         Ok((missing > 0).then_some(Stop::Missing(missing)))
+    }
+
+    /// Runs each setting's datasets as a chain: `first` holds each setting's next dataset (not
+    /// stored yet), and once one is stored `next` says which dataset of that setting runs next,
+    /// if any. A setting whose chain has the most expected seconds left starts first. Returns why
+    /// the run must stop, as [`Runner::run`].
+    pub(super) fn run_chained(
+        &self,
+        g: usize,
+        first: &[(Decoded, usize)],
+        next: &(dyn Fn(&Decoded) -> Option<usize> + Sync),
+        best: Option<&IndividualRecord>,
+    ) -> Result<Option<Stop>> {
+        let datasets = self.spec.search.datasets;
+        // A setting's units are expected to cost alike (its stored mean, or the cost model), so its
+        // chain's priority is that times the datasets it has left.
+        let per_setting: HashMap<String, f64> =
+            first.iter().zip(expected_seconds(self.ev, first)).map(|((x, _), (_, e))| (setting_id(x), e)).collect();
+        let queued: Mutex<HashMap<String, Decoded>> = Mutex::new(HashMap::new());
+        let queue = |units: &[(Decoded, usize)]| -> Vec<Queued> {
+            let planned: Vec<(String, f64)> = units
+                .iter()
+                .map(|(x, d)| (unit_id(x, *d), per_setting.get(&setting_id(x)).copied().unwrap_or(0.0)))
+                .collect();
+            self.clock.lock().expect("clock").plan(&planned);
+            self.progress.add_to_stage(planned.len() as u64);
+            let mut q = queued.lock().expect("queued");
+            units
+                .iter()
+                .zip(planned)
+                .map(|((x, d), (id, e))| {
+                    q.insert(id.clone(), *x);
+                    (id, e * datasets.saturating_sub(*d) as f64)
+                })
+                .collect()
+        };
+        let first_queued = queue(first);
+        let done = |id: &str| {
+            self.unit_done(g, id, best);
+            let x = queued.lock().expect("queued").get(id).copied();
+            match x.and_then(|x| next(&x).map(|d| (x, d))) {
+                Some(unit) => queue(&[unit]),
+                None => Vec::new(),
+            }
+        };
+        if let Some(stop) = self.exec.run_chained(self.ev, first_queued, self.budget, &done)? {
+            return Ok(Some(stop));
+        }
+        let queued = queued.into_inner().expect("queued");
+        let missing = queued.keys().filter(|id| self.ev.load_unit(id).is_none()).count();
+        Ok((missing > 0).then_some(Stop::Missing(missing)))
+    }
+
+    /// Counts unit `id` of generation `g` as done: the clock, the progress line, and `state.json`
+    /// (at most every 5 s).
+    fn unit_done(&self, g: usize, id: &str, best: Option<&IndividualRecord>) {
+        let mut c = self.clock.lock().expect("clock");
+        c.unit_done(id);
+        let eta = c.eta(g, self.spec.search.stop.generations);
+        let gen_left = c.projected_generation().map(|p| (p - c.current()).max(0.0));
+        self.progress.unit_done(&format!(
+            "gen ≈ {} left · search ≈ {} left",
+            gen_left.map_or("?".into(), human),
+            eta.map_or("?".into(), human)
+        ));
+        if c.last_write.is_none_or(|t| t.elapsed().as_secs_f64() > 5.0) {
+            c.last_write = Some(Instant::now());
+            let info = StateInfo { phase: Phase::Running, generation: g, best, reason: "" };
+            let _ = write_state(self.dir, self.spec, &info, &c);
+        }
     }
 }

@@ -243,33 +243,30 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
                 runner.run(g, &want, best.as_ref().map(|b| &b.0))?
             }
             Some(cutoff) => {
-                // Datasets in rounds: each round runs the next dataset of every setting still
-                // open, then closes the settings whose mean so far is below the cutoff (pruned)
-                // or that diverged (fitness −∞ whatever the rest).
-                let mut open: Vec<Decoded> = distinct.clone();
-                let mut stopped = None;
-                for r in 0..s.datasets {
-                    let want: Vec<(Decoded, usize)> = open.iter().map(|x| (*x, r)).collect();
-                    if let Some(stop) = runner.run(g, &want, best.as_ref().map(|b| &b.0))? {
-                        stopped = Some(stop);
-                        break;
-                    }
-                    open.retain(|x| {
-                        // Every score stored so far: a setting scored in full before is judged by
-                        // its fitness, never pruned; one scored further in an earlier generation
-                        // (or before an interruption) is judged on all it has, which gives the
-                        // verdict the rounds would reach (they stop at the first mean below).
-                        let sc = stored_scores(&ev, x, s.datasets);
-                        match prune::decide(&sc, s.datasets, &s.prune, cutoff) {
-                            prune::Verdict::Open => true,
-                            prune::Verdict::Pruned => {
-                                pruned.insert(setting_id(x));
-                                false
-                            }
-                            prune::Verdict::Closed => false,
+                // Each setting's datasets in order, as a chain: once one is stored, the setting is
+                // judged on every score it has, and runs its next dataset unless its mean so far
+                // is below the cutoff (pruned) or it diverged or is complete (closed). A verdict
+                // depends only on the setting's own scores and the previous generation's cutoff,
+                // so no barrier between datasets is needed, and the verdicts do not depend on
+                // thread count, completion order or executor. A setting scored in full before is
+                // judged by its fitness, never pruned; one scored further in an earlier generation
+                // (or before an interruption) is judged on all it has, which gives the verdict a
+                // dataset-by-dataset evaluation would reach (it stops at the first mean below).
+                let pruned_now: Mutex<HashSet<String>> = Mutex::new(HashSet::new());
+                let next = |x: &Decoded| -> Option<usize> {
+                    let sc = stored_scores(&ev, x, s.datasets);
+                    match prune::decide(&sc, s.datasets, &s.prune, cutoff) {
+                        prune::Verdict::Open => Some(sc.len()),
+                        prune::Verdict::Pruned => {
+                            pruned_now.lock().expect("pruned").insert(setting_id(x));
+                            None
                         }
-                    });
-                }
+                        prune::Verdict::Closed => None,
+                    }
+                };
+                let first: Vec<(Decoded, usize)> = distinct.iter().filter_map(|x| next(x).map(|d| (*x, d))).collect();
+                let stopped = runner.run_chained(g, &first, &next, best.as_ref().map(|b| &b.0))?;
+                pruned = pruned_now.into_inner().expect("pruned");
                 stopped
             }
         };
