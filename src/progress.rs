@@ -54,8 +54,10 @@ impl Progress {
         }
     }
 
-    /// Adds `n` units to the current stage (work found as the stage goes, e.g. a round of datasets).
-    pub fn add_to_stage(&self, n: u64) {
+    /// Adds `n` units to the current stage (work found as the stage goes, e.g. a round of datasets),
+    /// saying so in the plain log if `say` (units opened one by one as others finish are not said,
+    /// one line each would drown the log; the every-10-units line shows the growing total).
+    pub fn add_to_stage(&self, n: u64, say: bool) {
         let total = {
             let mut g = self.inner.lock().expect("progress lock");
             g.1 += n;
@@ -63,7 +65,7 @@ impl Progress {
         };
         if let Some((_, _, inner)) = &self.bars {
             inner.set_length(total);
-        } else if !self.quiet && n > 0 {
+        } else if !self.quiet && say && n > 0 {
             eprintln!("{}   {n} units to run ({total} in this stage)", stamp());
         }
     }

@@ -189,7 +189,7 @@ impl Runner<'_> {
         // generation are short and no core waits long for the others.
         planned.sort_by(|a, b| b.1.total_cmp(&a.1));
         self.clock.lock().expect("clock").plan(&planned);
-        self.progress.add_to_stage(planned.len() as u64);
+        self.progress.add_to_stage(planned.len() as u64, true);
         let ids: Vec<String> = planned.into_iter().map(|(id, _)| id).collect();
         let done = |id: &str| self.unit_done(g, id, best);
         if let Some(stop) = self.exec.run(self.ev, &ids, self.budget, &done)? {
@@ -216,13 +216,13 @@ impl Runner<'_> {
         let per_setting: HashMap<String, f64> =
             first.iter().zip(expected_seconds(self.ev, first)).map(|((x, _), (_, e))| (setting_id(x), e)).collect();
         let queued: Mutex<HashMap<String, Decoded>> = Mutex::new(HashMap::new());
-        let queue = |units: &[(Decoded, usize)]| -> Vec<Queued> {
+        let queue = |units: &[(Decoded, usize)], say: bool| -> Vec<Queued> {
             let planned: Vec<(String, f64)> = units
                 .iter()
                 .map(|(x, d)| (unit_id(x, *d), per_setting.get(&setting_id(x)).copied().unwrap_or(0.0)))
                 .collect();
             self.clock.lock().expect("clock").plan(&planned);
-            self.progress.add_to_stage(planned.len() as u64);
+            self.progress.add_to_stage(planned.len() as u64, say);
             let mut q = queued.lock().expect("queued");
             units
                 .iter()
@@ -233,12 +233,12 @@ impl Runner<'_> {
                 })
                 .collect()
         };
-        let first_queued = queue(first);
+        let first_queued = queue(first, true);
         let done = |id: &str| {
             self.unit_done(g, id, best);
             let x = queued.lock().expect("queued").get(id).copied();
             match x.and_then(|x| next(&x).map(|d| (x, d))) {
-                Some(unit) => queue(&[unit]),
+                Some(unit) => queue(&[unit], false),
                 None => Vec::new(),
             }
         };
