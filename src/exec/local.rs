@@ -15,7 +15,6 @@ use super::{Executor, Queued};
 use crate::error::{Error, Result};
 use crate::run_dir::{Budget, Stop, Units};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Runs units on the rayon pool (`--jobs` threads).
 #[derive(Debug, Default, Clone, Copy)]
@@ -29,38 +28,12 @@ impl Executor for Local {
         budget: &Budget<'_>,
         done: &(dyn Fn(&str) + Sync),
     ) -> Result<Option<Stop>> {
-        let next = AtomicUsize::new(0);
-        let first_error = Mutex::new(None);
-        let stopped = Mutex::new(None);
-        let workers = rayon::current_num_threads().min(ids.len());
-        rayon::scope(|s| {
-            for _ in 0..workers {
-                s.spawn(|_| {
-                    loop {
-                        if first_error.lock().expect("error slot").is_some() {
-                            return;
-                        }
-                        // Checked before every unit, so a budget ends the run between units.
-                        if let Some(stop) = budget.check() {
-                            stopped.lock().expect("stop slot").get_or_insert(stop);
-                            return;
-                        }
-                        let Some(id) = ids.get(next.fetch_add(1, Ordering::SeqCst)) else { return };
-                        match units.compute(id) {
-                            Ok(()) => done(id),
-                            Err(e) => {
-                                first_error.lock().expect("error slot").get_or_insert(e);
-                                return;
-                            }
-                        }
-                    }
-                });
-            }
-        });
-        match first_error.into_inner().expect("error slot") {
-            Some(e) => Err(e),
-            None => Ok(stopped.into_inner().expect("stop slot")),
-        }
+        // The given order as priorities (first highest), and nothing opened: one queue, as chains.
+        let first: Vec<Queued> = ids.iter().enumerate().map(|(i, id)| (id.clone(), -(i as f64))).collect();
+        self.run_chained(units, first, budget, &|id: &str| {
+            done(id);
+            Vec::new()
+        })
     }
 
     fn run_chained(

@@ -195,8 +195,13 @@ impl Runner<'_> {
         if let Some(stop) = self.exec.run(self.ev, &ids, self.budget, &done)? {
             return Ok(Some(stop));
         }
-        let missing = ids.iter().filter(|id| self.ev.load_unit(id).is_none()).count();
-        Ok((missing > 0).then_some(Stop::Missing(missing)))
+        Ok(self.missing(&ids))
+    }
+
+    /// `Stop::Missing` if some of `ids` are not stored after the executor ran.
+    fn missing<'i>(&self, ids: impl IntoIterator<Item = &'i String>) -> Option<Stop> {
+        let missing = ids.into_iter().filter(|id| self.ev.load_unit(id).is_none()).count();
+        (missing > 0).then_some(Stop::Missing(missing))
     }
 
     /// Runs each setting's datasets as a chain: `first` holds each setting's next dataset (not
@@ -245,9 +250,7 @@ impl Runner<'_> {
         if let Some(stop) = self.exec.run_chained(self.ev, first_queued, self.budget, &done)? {
             return Ok(Some(stop));
         }
-        let queued = queued.into_inner().expect("queued");
-        let missing = queued.keys().filter(|id| self.ev.load_unit(id).is_none()).count();
-        Ok((missing > 0).then_some(Stop::Missing(missing)))
+        Ok(self.missing(queued.into_inner().expect("queued").keys()))
     }
 
     /// Counts unit `id` of generation `g` as done: the clock, the progress line, and `state.json`
