@@ -29,6 +29,9 @@ pub(super) struct Clock {
     pub(super) total_expected: f64,
     pub(super) done: usize,
     pub(super) total: usize,
+    /// Expected seconds of each chain's datasets not queued yet, by setting: they run unless the
+    /// setting is pruned, so the generation's estimate counts them until its chain ends.
+    pub(super) unqueued: HashMap<String, f64>,
     pub(super) last_write: Option<Instant>,
 }
 
@@ -48,6 +51,7 @@ impl Clock {
             total_expected: 0.0,
             done: 0,
             total: 0,
+            unqueued: HashMap::new(),
             last_write: None,
         }
     }
@@ -71,25 +75,37 @@ impl Clock {
         self.done_expected += self.expected.get(id).copied().unwrap_or(0.0);
     }
 
+    /// Sets the expected seconds of `setting`'s datasets that its chain has not queued yet (0 once
+    /// the chain has ended).
+    pub(super) fn set_unqueued(&mut self, setting: String, seconds: f64) {
+        self.unqueued.insert(setting, seconds);
+    }
+
     /// Projected wall seconds of the current generation: what ran, plus what is left at the rate
-    /// (expected seconds per second) measured in this invocation.
+    /// (expected seconds per second) measured in this invocation. Left counts the queued units and
+    /// the rest of every open chain, so pruning can only make the generation shorter.
     pub(super) fn projected_generation(&self) -> Option<f64> {
         let ran = self.since.elapsed().as_secs_f64();
         if self.done_expected <= 0.0 || ran <= 0.0 {
             return (self.total == 0).then(|| self.current());
         }
         let rate = self.done_expected / ran;
-        Some(self.current() + (self.total_expected - self.done_expected).max(0.0) / rate)
+        let left = (self.total_expected - self.done_expected).max(0.0) + self.unqueued.values().sum::<f64>();
+        Some(self.current() + left / rate)
     }
 
-    /// Projected seconds to the end of generation `generations − 1`, from generation `g`.
+    /// Projected seconds to the end of generation `generations − 1`, from generation `g`. Later
+    /// generations are expected to take the mean of generations 1 onwards once one has run:
+    /// generation 0 computes every unit of every individual, later ones reuse the elites' stored
+    /// units (and may prune), so including it over-reads.
     pub(super) fn eta(&self, g: usize, generations: usize) -> Option<f64> {
         let this = self.projected_generation()?;
-        let per = if self.generation_seconds.is_empty() {
-            this
-        } else {
-            self.generation_seconds.iter().sum::<f64>() / self.generation_seconds.len() as f64
+        let past = match self.generation_seconds.as_slice() {
+            [] => std::slice::from_ref(&this),
+            [first] => std::slice::from_ref(first),
+            [_, later @ ..] => later,
         };
+        let per = past.iter().sum::<f64>() / past.len() as f64;
         Some((this - self.current()).max(0.0) + per * generations.saturating_sub(g + 1) as f64)
     }
 
@@ -104,6 +120,7 @@ impl Clock {
         self.prior = 0.0;
         self.since = Instant::now();
         self.expected.clear();
+        self.unqueued.clear();
         (self.done_expected, self.total_expected, self.done, self.total) = (0.0, 0.0, 0, 0);
         secs
     }
@@ -222,11 +239,15 @@ impl Runner<'_> {
             first.iter().zip(expected_seconds(self.ev, first)).map(|((x, _), (_, e))| (setting_id(x), e)).collect();
         let queued: Mutex<HashMap<String, Decoded>> = Mutex::new(HashMap::new());
         let queue = |units: &[(Decoded, usize)], say: bool| -> Vec<Queued> {
-            let planned: Vec<(String, f64)> = units
-                .iter()
-                .map(|(x, d)| (unit_id(x, *d), per_setting.get(&setting_id(x)).copied().unwrap_or(0.0)))
-                .collect();
-            self.clock.lock().expect("clock").plan(&planned);
+            let each: Vec<f64> =
+                units.iter().map(|(x, _)| per_setting.get(&setting_id(x)).copied().unwrap_or(0.0)).collect();
+            let planned: Vec<(String, f64)> = units.iter().zip(&each).map(|((x, d), e)| (unit_id(x, *d), *e)).collect();
+            let mut c = self.clock.lock().expect("clock");
+            c.plan(&planned);
+            for ((x, d), e) in units.iter().zip(&each) {
+                c.set_unqueued(setting_id(x), e * datasets.saturating_sub(d + 1) as f64);
+            }
+            drop(c);
             self.progress.add_to_stage(planned.len() as u64, say);
             let mut q = queued.lock().expect("queued");
             units
@@ -244,7 +265,12 @@ impl Runner<'_> {
             let x = queued.lock().expect("queued").get(id).copied();
             match x.and_then(|x| next(&x).map(|d| (x, d))) {
                 Some(unit) => queue(&[unit], false),
-                None => Vec::new(),
+                None => {
+                    if let Some(x) = x {
+                        self.clock.lock().expect("clock").set_unqueued(setting_id(&x), 0.0);
+                    }
+                    Vec::new()
+                }
             }
         };
         if let Some(stop) = self.exec.run_chained(self.ev, first_queued, self.budget, &done)? {
@@ -270,5 +296,49 @@ impl Runner<'_> {
             let info = StateInfo { phase: Phase::Running, generation: g, best, reason: "" };
             let _ = write_state(self.dir, self.spec, &info, &c);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn clock(generation_seconds: Vec<f64>, ran: f64) -> Clock {
+        let mut c = Clock::resume(Path::new("/nonexistent"));
+        c.generation_seconds = generation_seconds;
+        c.since = Instant::now().checked_sub(Duration::from_secs_f64(ran)).expect("uptime");
+        c
+    }
+
+    #[test]
+    fn unqueued_chain_datasets_count_until_the_chain_ends() {
+        let mut c = clock(vec![], 10.0);
+        c.plan(&[("a".into(), 10.0), ("b".into(), 10.0)]);
+        c.unit_done("a");
+        // 10 expected seconds done in 10 s: the 10 queued seconds left take about 10 s more.
+        assert!((c.projected_generation().unwrap() - 20.0).abs() < 0.5);
+        c.set_unqueued("x".into(), 30.0);
+        assert!((c.projected_generation().unwrap() - 50.0).abs() < 0.5);
+        c.set_unqueued("x".into(), 0.0);
+        assert!((c.projected_generation().unwrap() - 20.0).abs() < 0.5);
+        c.set_unqueued("y".into(), 5.0);
+        c.finish_generation(0);
+        assert!(c.unqueued.is_empty());
+    }
+
+    #[test]
+    fn later_generations_are_expected_to_take_the_mean_after_generation_0() {
+        // No generation finished: the current one's projection stands for the rest.
+        let mut c = clock(vec![], 10.0);
+        c.plan(&[("a".into(), 10.0), ("b".into(), 10.0)]);
+        c.unit_done("a");
+        assert!((c.eta(0, 3).unwrap() - (10.0 + 2.0 * 20.0)).abs() < 1.0);
+        // Only generation 0 finished: it is all there is to go by.
+        let c = clock(vec![7200.0], 0.0);
+        assert!((c.eta(1, 4).unwrap() - 2.0 * 7200.0).abs() < 1.0);
+        // Generation 0 computed everything; later ones set the pace.
+        let c = clock(vec![7200.0, 600.0, 1200.0], 0.0);
+        assert!((c.eta(3, 5).unwrap() - 900.0).abs() < 1.0);
     }
 }
