@@ -262,13 +262,11 @@ impl Runner<'_> {
         let first_queued = queue(first, true);
         let done = |id: &str| {
             self.unit_done(g, id, best);
-            let x = queued.lock().expect("queued").get(id).copied();
-            match x.and_then(|x| next(&x).map(|d| (x, d))) {
-                Some(unit) => queue(&[unit], false),
+            let Some(x) = queued.lock().expect("queued").get(id).copied() else { return Vec::new() };
+            match next(&x) {
+                Some(d) => queue(&[(x, d)], false),
                 None => {
-                    if let Some(x) = x {
-                        self.clock.lock().expect("clock").set_unqueued(setting_id(&x), 0.0);
-                    }
+                    self.clock.lock().expect("clock").set_unqueued(setting_id(&x), 0.0);
                     Vec::new()
                 }
             }
