@@ -127,6 +127,8 @@ pub mod purpose {
     pub const GA_INIT: &str = "ga/init";
     /// Child `c` of generation `g` (parents, crossover, mutation), from the GA seed: `[g, c]`.
     pub const GA_BREED: &str = "ga/breed";
+    /// Individual `i` of generation `g` ≥ 1 of a random search, from the GA seed: `[g, i]`.
+    pub const GA_RANDOM: &str = "ga/random";
     /// Validation of an environment's settings (a few random steps), from seed 0: `[e]`.
     pub const ENV_CHECK: &str = "env/check";
     /// Whether an environment's dataset actions are discrete, from seed 0: `[]`.

@@ -183,6 +183,14 @@ pub struct SearchSpec {
     /// optimum) on fresh validation datasets; none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validate: Option<ValidateRule>,
+    /// Which winner `best.json` holds: the best fitness (the thesis's rule, the default) or the
+    /// validation's winner (beyond the thesis; needs `validate`).
+    #[serde(default, skip_serializing_if = "Select::is_fitness")]
+    pub select: Select,
+    /// How each generation after the first is made: bred by the GA (thesis Appendix C, the
+    /// default) or drawn uniformly from the gene ranges (`random`, a baseline beyond the thesis).
+    #[serde(default, skip_serializing_if = "Strategy::is_ga")]
+    pub strategy: Strategy,
     /// Chromosomes placed first in generation 0 in place of random ones (`search --seed-config`),
     /// as Optuna's `enqueue_trial` does; none when absent.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -224,7 +232,57 @@ impl SearchSpec {
                 &format!("must lie in the gene ranges {b:?}"),
             )?;
         }
+        ensure(
+            self.select == Select::Fitness || self.validate.is_some(),
+            "select",
+            "validated",
+            "needs search.validate (the validation decides the winner)",
+        )?;
         self.validate.as_ref().map_or(Ok(()), |v| v.validate())
+    }
+}
+
+/// `search.select`: which setting the search's tuned config (`best.json`) is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Select {
+    /// The best fitness on the search datasets (thesis Appendix C).
+    #[default]
+    Fitness,
+    /// The winner of the validation (the race's leader, or the best validation mean).
+    Validated,
+}
+
+impl Select {
+    /// Whether this is the thesis's rule (left out of spec files and hashes when it is).
+    pub fn is_fitness(&self) -> bool {
+        *self == Select::Fitness
+    }
+    /// `fitness` or `validated`, as spec files spell it.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Select::Fitness => "fitness",
+            Select::Validated => "validated",
+        }
+    }
+}
+
+/// `search.strategy`: where the individuals of generations 1, 2, … come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Strategy {
+    /// Elites, crossover and mutation (thesis Appendix C).
+    #[default]
+    Ga,
+    /// Every individual drawn uniformly over the gene ranges, as generation 0 is: random search at
+    /// the GA's population size, the baseline that says what the GA's breeding adds.
+    Random,
+}
+
+impl Strategy {
+    /// Whether this is the thesis's GA (left out of spec files and hashes when it is).
+    pub fn is_ga(&self) -> bool {
+        *self == Strategy::Ga
     }
 }
 
@@ -316,15 +374,54 @@ const BUILTIN: [(&str, &str); 3] = [
 pub struct ValidateRule {
     /// Settings re-scored, best fitness first.
     pub top: usize,
-    /// Validation datasets each is scored on.
+    /// Validation datasets each is scored on; with `race`, the most any setting gets (the budget).
     pub datasets: usize,
+    /// Race the settings in rounds instead of scoring each on every dataset; none when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub race: Option<RaceRule>,
+}
+
+/// `search.validate.race`: every setting is scored on `first` validation datasets; after each
+/// round, settings whose paired difference to the leader is below 0 at `confidence` are dropped,
+/// and the survivors get `step` datasets more, until one is left or `datasets` are spent.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RaceRule {
+    /// Datasets of the first round (≥ 2: a paired interval needs two pairs).
+    pub first: usize,
+    /// Datasets added to each survivor per round.
+    pub step: usize,
+    /// Confidence of the paired t intervals that drop a setting (0.95).
+    pub confidence: f64,
 }
 
 impl ValidateRule {
     /// Validates the rule; errors name the field.
     pub fn validate(&self) -> Result<()> {
         ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
-        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")
+        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")?;
+        if let Some(r) = &self.race {
+            let d = self.datasets;
+            ensure(
+                (2..=d).contains(&r.first),
+                "validate.race.first",
+                r.first,
+                &format!("must be in 2..={d} (validate.datasets)"),
+            )?;
+            ensure(
+                (1..=d).contains(&r.step),
+                "validate.race.step",
+                r.step,
+                &format!("must be in 1..={d} (validate.datasets)"),
+            )?;
+            ensure(
+                r.confidence.is_finite() && (0.5..=0.999).contains(&r.confidence),
+                "validate.race.confidence",
+                r.confidence,
+                "must be in [0.5, 0.999]",
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -382,7 +479,26 @@ impl Spec {
         // Claims decide how a comparison is read, not any number a search computes.
         s.experiments.et.claims.clear();
         s.experiments.mlp.claims.clear();
+        // Which winner best.json holds and how the validation races decide no unit's number
+        // either; left at their defaults so older runs keep their hash.
+        s.search.select = Select::Fitness;
+        if let Some(v) = &mut s.search.validate {
+            v.race = None;
+        }
+        // A unit's result does not depend on how its setting was found, so a random baseline
+        // shares units with the GA search of the same spec (`search --units-from`).
+        s.search.strategy = Strategy::Ga;
         s.hash()
+    }
+
+    /// The identity a run directory records in `run.json` and checks on resume: the results hash,
+    /// and for a random search its strategy too, so neither run resumes as the other.
+    pub fn run_hash(&self) -> String {
+        let h = self.results_hash();
+        match self.search.strategy {
+            Strategy::Ga => h,
+            Strategy::Random => format!("{h}-random"),
+        }
     }
 
     /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.

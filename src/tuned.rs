@@ -7,7 +7,7 @@ use crate::ga::chromosome::Chromosome;
 use crate::learn::Learner;
 use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::{Activation, MlpParams};
-use crate::spec::Spec;
+use crate::spec::{Select, Spec};
 use crate::stats::Summary;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -55,6 +55,24 @@ pub struct TunedConfig {
     /// How the setting scored on the validation datasets (`search.validate`), when validated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub validation: Option<ValidationSummary>,
+    /// The search's two winners, best fitness and validated, and which of them this config is
+    /// (`search.select`), when validated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub selection: Option<Selection>,
+}
+
+/// The choice `search.select` made, as `best.json` records it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Selection {
+    /// The rule: `fitness` (the thesis's) or `validated`.
+    pub select: Select,
+    /// The setting with the best fitness on the search datasets.
+    pub fitness: String,
+    /// The validation's winner (a race's leader, or the best validation mean).
+    pub validated: Option<String>,
+    /// Top settings the validation cannot tell from its winner at 95 %.
+    pub indistinguishable: Vec<String>,
 }
 
 /// Built-in copies of the thesis's tuned configs.

@@ -104,6 +104,39 @@ fn a_record_that_disagrees_with_its_unit_is_refused() {
     assert!(err.contains("generations.jsonl") && err.contains(first.file_name().unwrap().to_str().unwrap()), "{err}");
 }
 
+/// Student's t quantile at 0.975 with 9 degrees of freedom, from the tables (10 paired datasets).
+const T_975_9: f64 = 2.262_157;
+
+/// The scores of `setting` on datasets 0..10 of `dir/units` (search) or `dir/validation`.
+fn unit_scores(dir: &std::path::Path, setting: &str) -> Vec<f64> {
+    (0..10).map(|k| json(dir.join(format!("{setting}.d{k}.json")))["score"].as_f64().unwrap()).collect()
+}
+
+/// `mean ± t·s/√n` of `a − b`, paired, as the report prints it.
+fn reference_paired(a: &[f64], b: &[f64]) -> String {
+    let d: Vec<f64> = a.iter().zip(b).map(|(x, y)| x - y).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n;
+    let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    format!("{mean:+.3} ± {:.3}", T_975_9 * sd / n.sqrt())
+}
+
+#[test]
+fn the_reports_paired_intervals_are_recomputed_from_the_stored_units() {
+    let dir = root().join("bicycle");
+    // Hall of fame 1, the tuned config under the thesis's `select: fitness`.
+    let entry = &json(dir.join("validation.json"))["entries"][0];
+    assert_eq!(entry["source"], "hall of fame 1");
+    let tuned = entry["setting"].as_str().unwrap().to_string();
+    let thesis = "sigmoid_1.1e-2_75";
+    let search = reference_paired(&unit_scores(&dir.join("units"), &tuned), &unit_scores(&dir.join("units"), thesis));
+    let validation =
+        reference_paired(&unit_scores(&dir.join("validation"), &tuned), &unit_scores(&dir.join("validation"), thesis));
+    let row = format!("| thesis optimum | `{thesis}` | {search} | 10 | {validation} | 10 | tuned config ahead |");
+    let report = read(dir.join("report.md"));
+    assert!(report.lines().any(|l| l == row), "not in bicycle/report.md:\n{row}");
+}
+
 /// The README's rows of the tables it copies from the search reports (the generations table and
 /// the dataset-by-dataset table), with the section they are in: `## <env> …`, where `<env>` is the
 /// run directory's name, hyphens allowed (`cart-pole`).
@@ -124,7 +157,9 @@ fn readme_rows() -> Vec<(String, String)> {
             header = line.to_string();
             continue;
         }
-        let copied = header.starts_with("| generation | new units |") || header.starts_with("| | datasets |");
+        let copied = ["| generation | new units |", "| | datasets |", "| | setting |", "| tuned config minus |"]
+            .iter()
+            .any(|h| header.starts_with(h));
         if copied && !line.starts_with("|---") {
             rows.push((section.clone(), line.to_string()));
         }

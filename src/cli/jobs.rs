@@ -46,6 +46,10 @@ pub struct SearchArgs {
     /// Check the spec, presets and flags and print the resolved spec as JSON, creating nothing.
     #[arg(long, conflicts_with = "resume")]
     pub dry_run: bool,
+    /// Before the first generation, take every unit of this search run that verifies and was
+    /// computed under the same results hash (e.g. a random baseline sharing its GA search's cache).
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["resume", "dry_run"])]
+    pub units_from: Option<PathBuf>,
     /// No progress output (the run directory still records everything).
     #[arg(long)]
     pub quiet: bool,
@@ -116,9 +120,21 @@ pub struct ValidateArgs {
     /// Settings of the hall of fame to re-score (default: the spec's `search.validate.top`).
     #[arg(long)]
     pub top: Option<usize>,
-    /// Validation datasets (default: the spec's `search.validate.datasets`).
+    /// Validation datasets (default: the spec's `search.validate.datasets`); with a race, the most
+    /// any setting gets.
     #[arg(long)]
     pub datasets: Option<usize>,
+    /// Race the settings: validation datasets of the first round (default: the spec's
+    /// `search.validate.race.first`).
+    #[arg(long)]
+    pub race_first: Option<usize>,
+    /// Race the settings: datasets added to each survivor per round (default: the spec's
+    /// `search.validate.race.step`).
+    #[arg(long)]
+    pub race_step: Option<usize>,
+    /// No race: every setting on every validation dataset, even where the spec races.
+    #[arg(long, conflicts_with_all = ["race_first", "race_step"])]
+    pub no_race: bool,
     /// Suppress progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -160,7 +176,18 @@ pub(super) fn search(a: SearchArgs) -> Result<Outcome> {
             println!("{}", serde_json::to_string_pretty(&spec)?);
             return Ok(Outcome::Success);
         }
-        search::prepare(name, &presets, o, a.out.as_deref(), Path::new("results"))?
+        if let Some(from) = &a.units_from {
+            // Refused before a run directory exists.
+            search::check_units_from(&search::resolve(name, &presets, o)?.0, from)?;
+        }
+        let dir = search::prepare(name, &presets, o, a.out.as_deref(), Path::new("results"))?;
+        if let Some(from) = &a.units_from {
+            let n = search::share_units(&dir, from)?;
+            if !a.quiet {
+                eprintln!("{n} units taken from {}", from.display());
+            }
+        }
+        dir
     };
     let max_hours = match budget {
         Some(h) => Some(h),
@@ -227,7 +254,14 @@ pub(super) fn batch(a: BatchArgs) -> Result<Outcome> {
 
 pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
     use crate::ga::validate;
-    let rule = validate::rule_for_search(&a.dir, a.top, a.datasets)?;
+    let flags = validate::RuleFlags {
+        top: a.top,
+        datasets: a.datasets,
+        race_first: a.race_first,
+        race_step: a.race_step,
+        no_race: a.no_race,
+    };
+    let rule = validate::rule_for_search(&a.dir, &flags)?;
     let exec = a.exec.executor(&a.dir)?;
     let budget = Budget::new(interrupt_flag(), None);
     let v = match crate::runs::validate(&a.dir, &rule, exec.as_ref(), &budget, a.quiet)? {
@@ -241,6 +275,21 @@ pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
     for e in &v.entries {
         let tag = if e.setting == v.tuned { format!("{} (tuned)", e.source) } else { e.source.clone() };
         println!("{:<22} {:<24} {:>20} {:>20}", tag, e.setting, ci(&e.search), ci(&e.validation));
+    }
+    for r in &v.rounds {
+        let dropped: Vec<&str> = r
+            .standings
+            .iter()
+            .filter(|s| s.verdict == crate::ga::race::Verdict::Dropped)
+            .map(|s| s.setting.as_str())
+            .collect();
+        println!(
+            "race round {} ({} datasets): leader {}, dropped {}",
+            r.round,
+            r.datasets,
+            r.leader,
+            if dropped.is_empty() { "none".into() } else { dropped.join(", ") }
+        );
     }
     println!("{}", v.note);
     Ok(Outcome::Success)

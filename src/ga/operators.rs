@@ -55,18 +55,28 @@ fn draw_gene(rng: &mut Rng, [lo, hi]: [i64; 2]) -> i64 {
     int_in(rng, lo, hi)
 }
 
+/// A chromosome with every gene uniform over its range, drawn in gene order.
+fn uniform(r: &mut Rng, bounds: &[[i64; 2]; GENES]) -> Chromosome {
+    let mut c = [0; GENES];
+    for (g, b) in c.iter_mut().zip(bounds) {
+        *g = draw_gene(r, *b);
+    }
+    c
+}
+
 /// The initial population: every gene uniform over its range.
 pub fn initial_population(seed: u64, ranges: &GeneRanges, size: usize) -> Vec<Chromosome> {
     let bounds = ranges.bounds();
+    (0..size).map(|i| uniform(&mut stream(seed, crate::rng::purpose::GA_INIT, &[i as u64]), &bounds)).collect()
+}
+
+/// Generation `generation` (≥ 1) of a random search (`search.strategy: random`): every gene
+/// uniform over its range, as in the initial population, from a stream of its own per generation
+/// and individual.
+pub fn random_generation(seed: u64, generation: usize, ranges: &GeneRanges, size: usize) -> Vec<Chromosome> {
+    let bounds = ranges.bounds();
     (0..size)
-        .map(|i| {
-            let mut r = stream(seed, crate::rng::purpose::GA_INIT, &[i as u64]);
-            let mut c = [0; GENES];
-            for (g, b) in c.iter_mut().zip(bounds) {
-                *g = draw_gene(&mut r, b);
-            }
-            c
-        })
+        .map(|i| uniform(&mut stream(seed, crate::rng::purpose::GA_RANDOM, &[generation as u64, i as u64]), &bounds))
         .collect()
 }
 

@@ -35,6 +35,18 @@ pub struct RunInfo {
     /// runs created before it was): a resume refuses a spec.json changed since.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spec_hash: Option<String>,
+    /// Runs whose units this one took at its start (`search --units-from`), and how many.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub units_from: Vec<SharedUnits>,
+}
+
+/// Units a search took from another run's cache (`search --units-from`), in `run.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SharedUnits {
+    /// The run directory they came from, as given.
+    pub dir: String,
+    /// Units copied: those that verify (checksum) and were computed under this run's results hash.
+    pub units: usize,
 }
 
 /// One invocation that continued a search, in `run.json`.
@@ -104,6 +116,8 @@ pub enum Origin {
     Elite,
     /// Bred from two parents of the previous generation.
     Child,
+    /// Drawn at random for a later generation of a random search (`search.strategy: random`).
+    Random,
 }
 
 impl IndividualRecord {

@@ -12,7 +12,7 @@
 //! read, not retrained, so resuming is just running again.
 
 use super::chromosome::{Chromosome, Decoded, decode};
-use super::operators::{Birth, initial_population, next_generation, rank};
+use super::operators::{Birth, initial_population, next_generation, random_generation, rank};
 use super::prune;
 use super::records::finite;
 pub use super::records::{
@@ -20,17 +20,16 @@ pub use super::records::{
 };
 pub use super::reproduce::{Reproduction, reproduce};
 use super::runner::{Clock, Runner, StateInfo, write_state};
-pub use super::setup::{SearchOverrides, create, extend, load_spec, prepare, resolve};
+pub use super::setup::{SearchOverrides, check_units_from, create, extend, load_spec, prepare, resolve, share_units};
 use super::units::setting_id;
 pub use super::units::{Evaluator, UnitResult, describe, parse_unit_id, unit_id};
 use crate::error::{Error, Result};
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
 use crate::run_dir::{Budget, Ending, UnitStore};
-use crate::spec::Spec;
+use crate::spec::{Spec, Strategy};
 use crate::stats::summarize;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
-use crate::tuned::TunedConfig;
 use std::collections::HashSet;
 use std::path::Path;
 use std::sync::Mutex;
@@ -86,32 +85,6 @@ fn stats(records: &[IndividualRecord]) -> GenerationStats {
     }
 }
 
-/// The tuned config of the best individual.
-fn tuned(spec: &Spec, best: &IndividualRecord, generation: usize, ev: &Evaluator) -> TunedConfig {
-    let s = &spec.search;
-    TunedConfig {
-        env: spec.env.env().name().to_string(),
-        source: "search".into(),
-        activation: best.decoded.activation,
-        delta_min: best.decoded.delta_min,
-        patience: best.decoded.patience,
-        network: ev.network(&best.decoded),
-        actions: s.actions,
-        algorithm: s.algorithm,
-        iterations: s.iterations,
-        episodes: s.episodes,
-        datasets: s.datasets,
-        fitness: best.fitness,
-        scores: best.scores.clone(),
-        spec_hash: Some(spec.hash()),
-        seed: spec.seed,
-        generation: Some(generation),
-        chromosome: Some(best.genes),
-        spec: Some(spec.clone()),
-        validation: None,
-    }
-}
-
 /// The seed of the GA's own streams (initial population, breeding): from the master seed and the
 /// environment, so searches of different environments with one master seed draw different
 /// populations.
@@ -127,7 +100,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     let lock = RunLock::acquire(dir)?;
     let path = dir.join("run.json");
     let mut info: RunInfo = read_json(&path)?;
-    let hash = spec.results_hash();
+    let hash = spec.run_hash();
     match &info.spec_hash {
         Some(h) if *h != hash => {
             return Err(Error::File {
@@ -398,7 +371,12 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
             )?;
             return Ok(Ending::Finished(reason));
         }
-        if g + 1 < s.stop.generations {
+        if g + 1 < s.stop.generations && s.strategy == Strategy::Random {
+            // The baseline: a fresh uniform draw, with no elites, parents or mutation.
+            population = random_generation(seed, g + 1, &s.genes, s.ga.population);
+            origins = vec![Origin::Random; population.len()];
+            births = vec![None; population.len()];
+        } else if g + 1 < s.stop.generations {
             let (next, born) = next_generation(seed, g, &population, &fit, &eligible, &s.genes, &s.ga);
             let elites = next.len() - born.len();
             origins = (0..next.len()).map(|i| if i < elites { Origin::Elite } else { Origin::Child }).collect();
@@ -444,9 +422,17 @@ fn write_outputs(
         .map(|(r, g)| serde_json::json!({"generation": g, "genes": r.genes, "decoded": r.decoded, "fitness": r.fitness, "scores": r.scores}))
         .collect();
     write_json(&dir.join("hall_of_fame.json"), &hof)?;
-    let mut t = tuned(spec, best, best_generation, ev);
-    // Keep a validation of this same winner (a resumed or re-reported search).
-    t.validation = super::validate::load(dir).and_then(|v| v.summary_of(&best.setting));
+    // Keep a validation of this same fitness winner (a resumed or re-reported search), and the
+    // setting it selected.
+    let validation = super::validate::load(dir).filter(|v| v.fitness_winner() == best.setting);
+    let mut t = match &validation {
+        Some(v) if v.tuned != best.setting => super::winner::tuned_for(dir, spec, &v.tuned)?,
+        _ => super::winner::tuned(spec, best, best_generation, ev),
+    };
+    if let Some(v) = &validation {
+        t.validation = v.summary_of(&v.tuned);
+        t.selection = v.selection(&best.setting);
+    }
     write_json(&dir.join("best.json"), &t)?;
     crate::report::search::write_fitness(dir, spec, records)
 }

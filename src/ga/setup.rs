@@ -19,6 +19,59 @@ pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
     write_json(&dir.join("run.json"), info)
 }
 
+/// Copies into the new search in `dir` every unit of the run `from` that this search would
+/// compute identically: whole (its checksum verifies) and computed under the same results hash,
+/// which leaves out how settings are found (`search.strategy`) and the stop rules. A random
+/// baseline started with `--units-from` the GA search of its spec thus shares the GA's cache
+/// (its generation 0 is the GA's). Records the copy in `run.json`; returns the number of units.
+pub fn share_units(dir: &Path, from: &Path) -> Result<usize> {
+    let spec = load_spec(dir)?;
+    check_units_from(&spec, from)?;
+    let theirs = super::units::Evaluator::new(spec.clone(), from);
+    let ours = super::units::Evaluator::new(spec, dir);
+    let mut copied = 0;
+    for id in crate::run_dir::UnitStore::units(from).ids() {
+        if ours.unit_path(&id).is_file() || super::units::parse_unit_id(&id).is_none() {
+            continue;
+        }
+        // `load_unit` verifies the checksum and the results hash (warning once about the rest).
+        if theirs.load_unit(&id).is_some_and(|u| u.spec_hash.is_some()) {
+            // The file's bytes, so the copy is the unit as computed.
+            let bytes = std::fs::read(theirs.unit_path(&id))
+                .map_err(|e| Error::File { path: theirs.unit_path(&id), message: e.to_string() })?;
+            store::write_atomic(&ours.unit_path(&id), |w| std::io::Write::write_all(w, &bytes))?;
+            copied += 1;
+        }
+    }
+    let path = dir.join("run.json");
+    let mut info: RunInfo = store::read_json(&path)?;
+    info.units_from.push(super::records::SharedUnits { dir: from.display().to_string(), units: copied });
+    write_json(&path, &info)?;
+    Ok(copied)
+}
+
+/// Refuses `--units-from` a directory that is not a search run, or whose units were computed
+/// under another results hash than `spec`'s.
+pub fn check_units_from(spec: &Spec, from: &Path) -> Result<()> {
+    if !from.join("units").is_dir() || !from.join("spec.json").is_file() {
+        return Err(Error::File {
+            path: from.to_path_buf(),
+            message: "--units-from: not a search run directory (no spec.json and units/)".into(),
+        });
+    }
+    let (h, theirs) = (spec.results_hash(), load_spec(from)?.results_hash());
+    if h != theirs {
+        return Err(Error::File {
+            path: from.join("spec.json"),
+            message: format!(
+                "--units-from: its units were computed under another spec (results hash {theirs}, this search's {h}); \
+                 only search.strategy, search.select, the race and the stop rules may differ"
+            ),
+        });
+    }
+    Ok(())
+}
+
 /// Overrides of a search spec, each of one spec field (see [`resolve`]). Declared once for
 /// `search`'s flags and a batch plan's search jobs, whose fields are the flags' names
 /// (`"stall_generations": 5`).
@@ -140,7 +193,8 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         version: env!("CARGO_PKG_VERSION").into(),
         commit: env!("BFQI_GA_COMMIT").into(),
         resumed: Vec::new(),
-        spec_hash: Some(spec.results_hash()),
+        spec_hash: Some(spec.run_hash()),
+        units_from: Vec::new(),
     };
     Ok((spec, info))
 }

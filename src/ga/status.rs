@@ -58,14 +58,27 @@ pub fn line(dir: &Path) -> Result<String> {
     } else {
         format!("  ran {}", human(st.elapsed()))
     };
-    // A validated winner shows its validation mean beside its fitness.
-    let validated = super::validate::load(dir)
-        .and_then(|v| v.entries.into_iter().find(|e| e.setting == v.tuned))
-        .map_or(String::new(), |e| {
-            e.validation.map_or(" (validation: diverged)".into(), |s| {
-                format!(" (validation {:.4} ± {:.4} on {} datasets)", s.mean, s.ci95, s.n)
+    // A validated winner shows its validation mean beside its fitness, the race's rounds, and the
+    // validation's winner when it is another setting.
+    let validated = super::validate::load(dir).map_or(String::new(), |v| {
+        let own = v.entries.iter().find(|e| e.setting == v.tuned).map_or(String::new(), |e| {
+            e.validation.map_or(" (validation: diverged".into(), |s| {
+                format!(" (validation {:.4} ± {:.4} on {} datasets", s.mean, s.ci95, s.n)
             })
         });
+        let race = match (v.rounds.len(), v.race_end) {
+            (0, _) => String::new(),
+            (n, Some(super::race::End::Separated)) => format!("; race: {n} rounds, separated"),
+            (n, _) => format!("; race: {n} rounds, {} indistinguishable", v.indistinguishable().len() + 1),
+        };
+        let other = match (&v.best_validated, &v.by_fitness) {
+            // `select: validated` put the validation's winner in best.json.
+            (_, Some(f)) => format!("; best.json holds the validated winner {}, not the best fitness {f}", v.tuned),
+            (Some(b), None) if *b != v.tuned => format!("; validated winner {b}"),
+            _ => String::new(),
+        };
+        if own.is_empty() { String::new() } else { format!("{own}{race}{other})") }
+    });
     Ok(format!(
         "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}",
         env,

@@ -10,8 +10,8 @@ use crate::ga::setup::load_spec;
 use crate::ga::units::{Evaluator, describe, unit_id};
 use crate::ga::validate::{self, Validation};
 use crate::progress::human;
-use crate::spec::Spec;
-use crate::stats::{Summary, interval, summarize};
+use crate::spec::{Spec, Strategy};
+use crate::stats::{Paired, Summary, interval};
 use crate::store::{read_json, write_atomic};
 use std::collections::HashSet;
 use std::path::Path;
@@ -140,7 +140,15 @@ pub fn write(dir: &Path) -> Result<usize> {
     write_fitness(dir, &spec, &records)?;
 
     let s = &spec.search;
-    let mut md = format!("# GA search — {}\n\n", spec.env.env().name());
+    let mut md = match s.strategy {
+        Strategy::Ga => format!("# GA search — {}\n\n", spec.env.env().name()),
+        Strategy::Random => format!(
+            "# Random search — {}\n\n**Beyond the thesis: a random-search baseline** (`search.strategy: random`): every \
+             generation is drawn uniformly from the gene ranges, generation 0 exactly as the GA's; no elites, \
+             crossover or mutation.\n\n",
+            spec.env.env().name()
+        ),
+    };
     md.push_str(&format!(
         "Population {}, {} search datasets × {} episodes, K = {}, network {:?}, master seed {}{}.\n\n",
         s.ga.population,
@@ -197,6 +205,7 @@ pub fn write(dir: &Path) -> Result<usize> {
     if let Some(v) = validate::load(dir) {
         md.push_str(&v.markdown());
         md.push_str(&side_by_side(&v, spec.env.env().name()));
+        md.push_str(&paired_differences(&v));
     }
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     Ok(records.len())
@@ -238,14 +247,36 @@ fn side_by_side(v: &Validation, env: &str) -> String {
             md.push_str(&row(who, &e.setting, which, scores, summary));
         }
     }
-    let diff = |a: &[Option<f64>], b: &[Option<f64>]| -> Option<Summary> {
-        let d: Option<Vec<f64>> = a.iter().zip(b).map(|(x, y)| Some((*x)? - (*y)?)).collect();
-        d.and_then(|d| summarize(&d))
-    };
-    md.push_str(&format!(
-        "\nGA optimum minus thesis optimum, paired by dataset: search {}, validation {}.\n",
-        interval(diff(&ours.search_scores, &thesis.search_scores), 3),
-        interval(diff(&ours.validation_scores, &thesis.validation_scores), 3)
-    ));
+    md
+}
+
+/// The tuned config minus each other validated setting, paired by dataset, with t intervals, on
+/// the search and on the validation datasets.
+fn paired_differences(v: &Validation) -> String {
+    let Some(winner) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
+    let mut md = format!(
+        "\n### Paired differences\n\nThe tuned config `{}` minus each other setting, dataset by dataset, over the \
+         datasets both scored: the mean difference ± the half-width of its {:.0} % interval, t·s/√n with s the \
+         sample standard deviation of the differences and t Student's quantile with n − 1 degrees of freedom. \
+         Positive: the tuned config scores higher; `indistinguishable`: the interval holds 0.\n\n",
+        winner.setting,
+        v.confidence() * 100.0
+    );
+    md.push_str(
+        "| tuned config minus | setting | search datasets | n | validation datasets | n | on validation |\n|---|---|---|---|---|---|---|\n",
+    );
+    let cell = |p: Option<Paired>| p.map_or(("—".to_string(), "—".to_string()), |p| (p.show(3), p.n.to_string()));
+    for e in v.entries.iter().filter(|e| e.setting != winner.setting) {
+        let (s, sn) = cell(v.vs(winner, e, true));
+        let on_validation = v.vs(winner, e, false);
+        let (val, vn) = cell(on_validation);
+        let verdict = match on_validation.map(|p| p.sign()) {
+            Some(1) => "tuned config ahead",
+            Some(-1) => "tuned config behind",
+            Some(_) => "indistinguishable",
+            None => "no interval (a diverged dataset)",
+        };
+        md.push_str(&format!("| {} | `{}` | {s} | {sn} | {val} | {vn} | {verdict} |\n", e.source, e.setting));
+    }
     md
 }

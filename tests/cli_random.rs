@@ -1,0 +1,94 @@
+//! The random-search baseline (`search.strategy: random`, beyond the thesis): generation 0 is the
+//! GA's, later generations are uniform draws from the same gene ranges, and with `--units-from`
+//! it takes the GA run's stored units instead of computing them again.
+
+mod common;
+use common::{bin, empty_dir, json, tiny_with};
+
+use serde_json::Value;
+use std::path::Path;
+
+fn generations(run: &Path) -> Vec<Value> {
+    common::read(run.join("generations.jsonl")).lines().map(|l| serde_json::from_str(l).unwrap()).collect()
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "{}\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
+    let d = empty_dir("random", "baseline");
+    let (ga, rnd) = (d.path().join("ga"), d.path().join("random"));
+    let wide = ["--generations", "4", "--population", "6"];
+    ok(&bin().args(["search", "cartpole", "--out"]).arg(&ga).args(tiny_with(&wide)).output().unwrap());
+    let preset = Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/presets/random.json");
+    let out = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&rnd)
+        .args(tiny_with(&wide))
+        .arg("--preset")
+        .arg(&preset)
+        .arg("--units-from")
+        .arg(&ga)
+        .output()
+        .unwrap();
+    ok(&out);
+
+    let spec: Value = json(rnd.join("spec.json"));
+    assert_eq!(spec["search"]["strategy"], "random");
+    let genes = &spec["search"]["genes"];
+    let (g_ga, g_rnd) = (generations(&ga), generations(&rnd));
+    assert_eq!(g_rnd.len(), 4);
+    // Generation 0 is the GA's, individual by individual.
+    assert_eq!(g_ga[0]["individuals"], g_rnd[0]["individuals"]);
+    let mut drawn = std::collections::HashSet::new();
+    for g in &g_rnd[1..] {
+        for i in g["individuals"].as_array().unwrap() {
+            assert_eq!(i["origin"], "random", "{i}");
+            let c = i["genes"].as_array().unwrap();
+            let acts = genes["activations"].as_array().unwrap().len() as i64;
+            assert!((0..acts).contains(&c[0].as_i64().unwrap()), "{i}");
+            for (k, name) in [(1, "a_delta"), (2, "b_delta"), (3, "a_patience"), (4, "b_patience")] {
+                let (lo, hi) = (genes[name][0].as_i64().unwrap(), genes[name][1].as_i64().unwrap());
+                assert!((lo..=hi).contains(&c[k].as_i64().unwrap()), "gene {name} of {i} outside [{lo}, {hi}]");
+            }
+            drawn.insert(i["setting"].as_str().unwrap().to_string());
+        }
+    }
+    // Uniform draws, not copies of the previous generation: 18 draws give many distinct settings.
+    assert!(drawn.len() >= 12, "{drawn:?}");
+
+    // The GA's units were taken, not recomputed: every stored GA unit is in the random run, byte
+    // for byte, and run.json records how many.
+    let info: Value = json(rnd.join("run.json"));
+    let taken = info["units_from"][0]["units"].as_u64().unwrap() as usize;
+    let ga_units: Vec<_> = std::fs::read_dir(ga.join("units")).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(taken, ga_units.len());
+    for f in &ga_units {
+        assert_eq!(std::fs::read(ga.join("units").join(f)).unwrap(), std::fs::read(rnd.join("units").join(f)).unwrap());
+    }
+    // Neither run resumes as the other.
+    assert_ne!(info["spec_hash"], json(ga.join("run.json"))["spec_hash"]);
+    assert!(common::read(rnd.join("report.md")).starts_with("# Random search"));
+}
+
+#[test]
+fn units_from_another_spec_is_refused_before_a_run_directory_exists() {
+    let d = empty_dir("random", "refused");
+    let ga = d.path().join("ga");
+    ok(&bin().args(["search", "cartpole", "--out"]).arg(&ga).args(tiny_with(&[])).output().unwrap());
+    let rnd = d.path().join("other");
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&rnd)
+        .args(tiny_with(&["--episodes", "30"]))
+        .arg("--units-from")
+        .arg(&ga)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--units-from") && err.contains("another spec"), "{err}");
+    assert!(!rnd.exists(), "a refused command leaves nothing");
+}
