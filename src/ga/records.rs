@@ -45,7 +45,8 @@ pub struct RunInfo {
 pub struct SharedUnits {
     /// The run directory they came from, as given.
     pub dir: String,
-    /// Units copied: those that verify (checksum) and were computed under this run's results hash.
+    /// Units copied: those that verify (checksum, where they carry one) and were computed under
+    /// this run's results hash.
     pub units: usize,
 }
 

@@ -34,8 +34,10 @@ pub fn share_units(dir: &Path, from: &Path) -> Result<usize> {
         if ours.unit_path(&id).is_file() || super::units::parse_unit_id(&id).is_none() {
             continue;
         }
-        // `load_unit` verifies the checksum and the results hash (warning once about the rest).
-        if theirs.load_unit(&id).is_some_and(|u| u.spec_hash.is_some()) {
+        // `load_unit` verifies the checksum and the results hash (warning once about the rest);
+        // units written before they carried either (the thesis-sized searches') are taken on
+        // their run's spec.json, whose results hash was checked above.
+        if theirs.load_unit(&id).is_some() {
             // The file's bytes, so the copy is the unit as computed.
             let bytes = std::fs::read(theirs.unit_path(&id))
                 .map_err(|e| Error::File { path: theirs.unit_path(&id), message: e.to_string() })?;
