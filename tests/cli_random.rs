@@ -71,6 +71,26 @@ fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
     // Neither run resumes as the other.
     assert_ne!(info["spec_hash"], json(ga.join("run.json"))["spec_hash"]);
     assert!(common::read(rnd.join("report.md")).starts_with("# Random search"));
+
+    // What the GA adds: the random report sets both searches side by side at their FQI runs, and
+    // once both are validated, the paired difference of their winners on the validation datasets.
+    for run in [&ga, &rnd] {
+        ok(&bin().arg("validate").arg(run).args(["--top", "3", "--datasets", "4", "--quiet"]).output().unwrap());
+    }
+    ok(&bin().arg("report").arg(&rnd).output().unwrap());
+    let report = common::read(rnd.join("report.md"));
+    assert!(report.contains("## The GA against this random search"), "{report}");
+    let units = |g: &[Value]| g.iter().map(|r| r["new_units"].as_u64().unwrap()).sum::<u64>();
+    assert!(report.contains(&format!("| FQI runs | {} | {} |", units(&g_ga), units(&g_rnd))), "{report}");
+    let winner = |run: &Path| {
+        let v: Value = json(run.join("validation.json"));
+        let e = v["entries"].as_array().unwrap().iter().find(|e| e["setting"] == v["tuned"]).unwrap().clone();
+        e["validation_scores"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect::<Vec<f64>>()
+    };
+    let (a, b) = (winner(&ga), winner(&rnd));
+    let mean = a.iter().zip(&b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64;
+    let row = report.lines().find(|l| l.starts_with("| validation datasets")).expect("a validation row");
+    assert!(row.contains(&format!("{mean:+.3} ± ")), "{row} (expected mean difference {mean:+.3})");
 }
 
 #[test]

@@ -1,5 +1,6 @@
 //! Reports: statistics over datasets, tables, plots and markdown.
 
+pub mod baseline;
 pub mod claims;
 pub mod comparison;
 pub mod plot;

@@ -207,6 +207,10 @@ pub fn write(dir: &Path) -> Result<usize> {
         md.push_str(&side_by_side(&v, spec.env.env().name()));
         md.push_str(&paired_differences(&v));
     }
+    if s.strategy == Strategy::Random {
+        let ga = super::baseline::ga_dir(dir).and_then(|g| read_generations(&g).ok().map(|r| (g, r)));
+        md.push_str(&super::baseline::markdown(dir, &spec, &records, ga));
+    }
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     Ok(records.len())
 }
