@@ -17,11 +17,6 @@ function text(parent, x, y, s, anchor) {
   t.textContent = s;
   return t;
 }
-function fmt(v) {
-  if (v === null || v === undefined) return "—";
-  const a = Math.abs(v);
-  return a !== 0 && (a < 1e-3 || a >= 1e5) ? v.toExponential(2) : v.toFixed(3);
-}
 function extent(vals) {
   const f = vals.filter((v) => v !== null && v !== undefined && isFinite(v));
   if (!f.length) return [0, 1];
@@ -29,6 +24,23 @@ function extent(vals) {
   if (lo === hi) { lo -= 0.5; hi += 0.5; }
   const pad = (hi - lo) * 0.05;
   return [lo - pad, hi + pad];
+}
+// About five round tick values inside [lo, hi] (steps of 1, 2 or 5 times a power of ten).
+function ticks(r, whole) {
+  const span = r[1] - r[0];
+  let step = Math.pow(10, Math.floor(Math.log10(span / 5)));
+  if (span / step > 25) step *= 5;
+  else if (span / step > 10) step *= 2;
+  if (whole) step = Math.max(1, Math.round(step));
+  const out = [];
+  for (let v = Math.ceil(r[0] / step) * step; v <= r[1] + 1e-9 * span; v += step) out.push(+v.toPrecision(12));
+  return out;
+}
+function fmt(v) {
+  if (v === null || v === undefined) return "—";
+  const a = Math.abs(v);
+  if (a !== 0 && (a < 1e-3 || a >= 1e5)) return v.toExponential(2);
+  return Number.isInteger(v) ? String(v) : String(+v.toPrecision(4));
 }
 // A frame: axes, ticks, title; returns the scales and the SVG.
 function frame(box, title, xr, yr, xlabel, ylabel, xlog) {
@@ -40,11 +52,9 @@ function frame(box, title, xr, yr, xlabel, ylabel, xlog) {
   const sy = (y) => H - m.b - ((y - yr[0]) / (yr[1] - yr[0])) * (H - m.t - m.b);
   el("rect", { x: m.l, y: m.t, width: W - m.l - m.r, height: H - m.t - m.b, fill: "none", stroke: "#999" }, svg);
   text(svg, m.l, 14, title);
-  for (let i = 0; i <= 4; i++) {
-    const x = xr[0] + ((xr[1] - xr[0]) * i) / 4, y = yr[0] + ((yr[1] - yr[0]) * i) / 4;
-    text(svg, sx(x), H - m.b + 14, xlog ? "1e" + x.toFixed(1) : fmt(x), "middle");
-    text(svg, m.l - 4, sy(y) + 4, fmt(y), "end");
-  }
+  // Log axes tick at whole powers of ten (the data are log10 values there).
+  ticks(xr, xlog).forEach((x) => text(svg, sx(x), H - m.b + 14, xlog ? "1e" + x : fmt(x), "middle"));
+  ticks(yr, false).forEach((y) => text(svg, m.l - 4, sy(y) + 4, fmt(y), "end"));
   text(svg, (W + m.l) / 2, H - 4, xlabel, "middle");
   const yl = text(svg, 12, (H - m.b + m.t) / 2, ylabel, "middle");
   yl.setAttribute("transform", "rotate(-90 12 " + (H - m.b + m.t) / 2 + ")");
@@ -93,11 +103,11 @@ function colour(t) {
   return "rgb(" + a.map((v, k) => Math.round(v + (b[k] - v) * u)).join(",") + ")";
 }
 // One point: a shape by activation, filled by fitness; pruned hollow grey, diverged a red cross.
-function marker(f, p, x, y, fr) {
+function marker(f, p, x, y, fr, cls) {
   const a = el("a", { href: p.url }, f.svg);
   const fill = p.fitness !== null ? colour((p.fitness - fr[0]) / (fr[1] - fr[0])) : "none";
   const stroke = p.diverged ? "#d00" : p.pruned ? "#888" : "#333";
-  const attrs = { class: "pt", fill: fill, stroke: stroke, "stroke-width": p.diverged ? 2 : 1 };
+  const attrs = { class: cls, fill: fill, stroke: stroke, "stroke-width": p.diverged ? 2 : 1 };
   let s;
   if (p.activation === "tanh") s = el("rect", Object.assign({ x: x - 4, y: y - 4, width: 8, height: 8 }, attrs), a);
   else if (p.activation === "relu") s = el("polygon", Object.assign({ points: x + "," + (y - 5) + " " + (x - 5) + "," + (y + 4) + " " + (x + 5) + "," + (y + 4) }, attrs), a);
@@ -113,13 +123,13 @@ function explorer(box, c) {
   const pts = c.points, fr = fitnessRange(pts);
   const f = frame(box, "Population: " + pts.length + " settings (○ sigmoid □ tanh △ relu; grey pruned, red diverged)",
     extent(pts.map((p) => Math.log10(p.delta_min))), extent(pts.map((p) => p.patience)), "δ_min (log10)", "patience", true);
-  pts.forEach((p) => marker(f, p, f.sx(Math.log10(p.delta_min)), f.sy(p.patience), fr));
+  pts.forEach((p) => marker(f, p, f.sx(Math.log10(p.delta_min)), f.sy(p.patience), fr, "pt"));
 }
 function geneChart(box, c, title, gx, label, xlog) {
   const pts = c.points, fr = fitnessRange(pts);
   const yv = (p) => (p.fitness !== null ? p.fitness : p.partial);
   const f = frame(box, title, extent(pts.map(gx)), extent(pts.map(yv)), label, "fitness", xlog);
-  pts.filter((p) => yv(p) !== null).forEach((p) => marker(f, p, f.sx(gx(p)), f.sy(yv(p)), fr));
+  pts.filter((p) => yv(p) !== null).forEach((p) => marker(f, p, f.sx(gx(p)), f.sy(yv(p)), fr, "gpt"));
 }
 const ACT = { sigmoid: 0, tanh: 1, relu: 2 };
 
@@ -157,7 +167,14 @@ function curves(section, c) {
   }
 }
 
+// How often the page redrew from polled data and when it first did (ms after navigation start):
+// the browser test reads these to see live updates arrive without a reload.
+const drawn = { count: 0, firstMs: null };
+window.dashboardDrawn = drawn;
 function draw(charts) {
+  drawn.count += 1;
+  if (drawn.firstMs === null) drawn.firstMs = performance.now();
+  document.body.dataset.draws = drawn.count;
   if (!charts) return;
   const get = (id) => document.getElementById(id);
   if (charts.generations && get("fitness")) {
