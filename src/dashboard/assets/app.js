@@ -43,7 +43,9 @@ function fmt(v) {
   return Number.isInteger(v) ? String(v) : String(+v.toPrecision(4));
 }
 // A frame: axes, ticks, title; returns the scales and the SVG.
-function frame(box, title, xr, yr, xlabel, ylabel, xlog) {
+// `xaxis`: "log" (the data are log10 values), "whole" (generations, categories) or plain.
+function frame(box, title, xr, yr, xlabel, ylabel, xaxis) {
+  const xlog = xaxis === "log";
   box.textContent = "";
   const W = box.clientWidth || 560, H = box.clientHeight || 360;
   const m = { l: 58, r: 12, t: 22, b: 36 };
@@ -53,7 +55,7 @@ function frame(box, title, xr, yr, xlabel, ylabel, xlog) {
   el("rect", { x: m.l, y: m.t, width: W - m.l - m.r, height: H - m.t - m.b, fill: "none", stroke: "#999" }, svg);
   text(svg, m.l, 14, title);
   // Log axes tick at whole powers of ten (the data are log10 values there).
-  ticks(xr, xlog).forEach((x) => text(svg, sx(x), H - m.b + 14, xlog ? "1e" + x : fmt(x), "middle"));
+  ticks(xr, xlog || xaxis === "whole").forEach((x) => text(svg, sx(x), H - m.b + 14, xlog ? "1e" + x : fmt(x), "middle"));
   ticks(yr, false).forEach((y) => text(svg, m.l - 4, sy(y) + 4, fmt(y), "end"));
   text(svg, (W + m.l) / 2, H - 4, xlabel, "middle");
   const yl = text(svg, 12, (H - m.b + m.t) / 2, ylabel, "middle");
@@ -81,7 +83,7 @@ function legend(f, items) {
 function fitnessChart(box, c) {
   const g = c.generations;
   const ys = g.flatMap((r) => [r.min, r.max, r.best_so_far]).concat(c.reference ? [c.reference.value] : []);
-  const f = frame(box, "Fitness per generation", extent(g.map((r) => r.g)), extent(ys), "generation", "fitness");
+  const f = frame(box, "Fitness per generation", extent(g.map((r) => r.g)), extent(ys), "generation", "fitness", "whole");
   band(f, g.map((r) => [r.g, r.min, r.max]), "#4682b4");
   line(f, g.map((r) => [r.g, r.mean]), "#4682b4");
   line(f, g.map((r) => [r.g, r.best]), "#2a2");
@@ -122,13 +124,13 @@ function fitnessRange(pts) {
 function explorer(box, c) {
   const pts = c.points, fr = fitnessRange(pts);
   const f = frame(box, "Population: " + pts.length + " settings (○ sigmoid □ tanh △ relu; grey pruned, red diverged)",
-    extent(pts.map((p) => Math.log10(p.delta_min))), extent(pts.map((p) => p.patience)), "δ_min (log10)", "patience", true);
+    extent(pts.map((p) => Math.log10(p.delta_min))), extent(pts.map((p) => p.patience)), "δ_min (log10)", "patience", "log");
   pts.forEach((p) => marker(f, p, f.sx(Math.log10(p.delta_min)), f.sy(p.patience), fr, "pt"));
 }
-function geneChart(box, c, title, gx, label, xlog) {
+function geneChart(box, c, title, gx, label, xaxis) {
   const pts = c.points, fr = fitnessRange(pts);
   const yv = (p) => (p.fitness !== null ? p.fitness : p.partial);
-  const f = frame(box, title, extent(pts.map(gx)), extent(pts.map(yv)), label, "fitness", xlog);
+  const f = frame(box, title, extent(pts.map(gx)), extent(pts.map(yv)), label, "fitness", xaxis);
   pts.filter((p) => yv(p) !== null).forEach((p) => marker(f, p, f.sx(gx(p)), f.sy(yv(p)), fr, "gpt"));
 }
 const ACT = { sigmoid: 0, tanh: 1, relu: 2 };
@@ -180,10 +182,10 @@ function draw(charts) {
   if (charts.generations && get("fitness")) {
     fitnessChart(get("fitness"), charts);
     explorer(get("explorer"), charts);
-    geneChart(get("gene-delta"), charts, "Fitness against δ_min", (p) => Math.log10(p.delta_min), "δ_min (log10)", true);
+    geneChart(get("gene-delta"), charts, "Fitness against δ_min", (p) => Math.log10(p.delta_min), "δ_min (log10)", "log");
     geneChart(get("gene-patience"), charts, "Fitness against patience", (p) => p.patience, "patience");
     geneChart(get("gene-activation"), charts, "Fitness against activation (0 sigmoid, 1 tanh, 2 relu)",
-      (p) => ACT[p.activation] + ((p.patience * 7919) % 100) / 400 - 0.125, "activation");
+      (p) => ACT[p.activation] + ((p.patience * 7919) % 100) / 400 - 0.125, "activation", "whole");
   }
   if (charts.series && get("curves")) curves(get("curves"), charts);
 }
