@@ -242,7 +242,10 @@ fn strings_from_run_files_show_as_text() {
     assert!(page.contains("&lt;script&gt;alert(2)&lt;/script&gt;"), "{page}");
     // The chart data carry the name as data (the script sets it with textContent), as JSON.
     let r = s.get(&format!("{run}?json=1"));
+    // Served as JSON that a browser may not sniff into HTML, under a policy that runs no inline script.
     assert_eq!(r.header("content-type"), Some("application/json"));
+    assert_eq!(r.header("x-content-type-options"), Some("nosniff"));
+    assert!(r.header("content-security-policy").unwrap().contains("script-src 'self'"));
     let j: Value = serde_json::from_str(&r.body).unwrap();
     assert!(j["charts"]["points"].as_array().unwrap().iter().any(|p| p["id"] == "<script>alert(2)</script>"));
     // CSV is not HTML: the name as it is, quoted by CSV's rules only.
@@ -294,6 +297,11 @@ fn a_run_written_during_requests_gives_no_error() {
     let id = settings(&dir).into_iter().next().unwrap();
     let unit = dir.join(format!("units/{id}.d1.json"));
     let unit_text = read(&unit);
+    // What the setting's page may show per dataset: a whole unit's score, never a half-read one.
+    let scores: BTreeSet<String> = (0..2)
+        .map(|d| common::json(dir.join(format!("units/{id}.d{d}.json")))["score"].as_f64())
+        .map(|s| s.map_or("—".into(), |s| format!("{s:.4}")))
+        .collect();
     // Held as a running search holds it, so the page says "running".
     let _lock = bfqi_ga::store::RunLock::acquire(&dir).unwrap();
 
@@ -333,10 +341,18 @@ fn a_run_written_during_requests_gives_no_error() {
             sc.spawn(|| {
                 let mut n = 0;
                 while !done.load(Ordering::SeqCst) || n < 5 {
-                    for path in ["/?json=1", "/run/0/run?json=1", &format!("/run/0/run?setting={id}&json=1")] {
+                    for path in ["/?json=1", "/run/0/run?json=1"] {
                         let page = s.json(path);
                         assert!(page["tables"].is_array(), "{path}");
                     }
+                    let page = s.json(&format!("/run/0/run?setting={id}&json=1"));
+                    let shown = table(&page, "datasets")["rows"].as_array().unwrap().clone();
+                    assert!(!shown.is_empty() && shown.len() <= 2, "{shown:?}");
+                    for row in &shown {
+                        assert!(scores.contains(row[1]["text"].as_str().unwrap()), "{row:?} not in {scores:?}");
+                    }
+                    let gens = s.json("/run/0/run?json=1")["charts"]["generations"].as_array().unwrap().clone();
+                    assert!(gens.iter().enumerate().all(|(i, g)| g["g"] == i), "whole records, in order: {gens:?}");
                     for path in ["/", "/run/0/run", "/run/0/run?csv=population", &format!("/run/0/run?setting={id}")] {
                         s.ok(path);
                     }
