@@ -1,8 +1,6 @@
 //! HTML of the pages: escaping, URL encoding, and the layout every page shares. Every string read
 //! from a run directory goes through [`escape`]; the script draws with `textContent` only.
 
-use super::table::Table;
-
 /// The embedded script and style sheet: the dashboard works offline.
 pub const APP_JS: &str = include_str!("assets/app.js");
 /// See [`APP_JS`].
@@ -68,9 +66,10 @@ pub fn decode(s: &str, plus: bool) -> Option<String> {
     String::from_utf8(out).ok()
 }
 
-/// A whole page: title, breadcrumb, body, tables. `live` pages poll their JSON (`?json=1`) and
-/// redraw charts and tables without a reload.
-pub fn page(title: &str, crumbs: &[(String, String)], body: &str, tables: &[Table], url: &str) -> String {
+/// A whole page: title, breadcrumb, body, then its tables (already HTML: [`super::table`] renders
+/// them with [`escape`], so this module does not depend on it back). The page's script polls its
+/// JSON (`?json=1`) and redraws charts and tables without a reload.
+pub fn page(title: &str, crumbs: &[(String, String)], body: &str, tables: &str, url: &str) -> String {
     let mut nav = String::from("<a href=\"/\">runs</a>");
     for (t, l) in crumbs {
         nav.push_str(&format!(" / <a href=\"{}\">{}</a>", escape(l), escape(t)));
@@ -83,9 +82,7 @@ pub fn page(title: &str, crumbs: &[(String, String)], body: &str, tables: &[Tabl
         escape(url),
         escape(title)
     );
-    for t in tables {
-        h.push_str(&t.html(url));
-    }
+    h.push_str(tables);
     h.push_str("</main><script src=\"/assets/app.js\"></script></body></html>");
     h
 }

@@ -88,7 +88,8 @@ pub fn handle(roots: &Roots, method: &str, url: &str) -> Reply {
         let body = json!({ "tables": page.tables, "charts": page.charts });
         return Reply::text(200, "application/json", body.to_string());
     }
-    Reply::text(200, "text/html; charset=utf-8", html::page(&page.title, &page.crumbs, &page.body, &page.tables, url))
+    let tables: String = page.tables.iter().map(|t| t.html(url)).collect();
+    Reply::text(200, "text/html; charset=utf-8", html::page(&page.title, &page.crumbs, &page.body, &tables, url))
 }
 
 /// `R/PATH` → (root, path).
