@@ -8,6 +8,7 @@ pub mod bench;
 pub mod cli;
 pub mod clock;
 pub mod compare;
+pub mod dashboard;
 pub mod dataset;
 pub mod env;
 pub mod error;

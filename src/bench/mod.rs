@@ -4,17 +4,21 @@
 //! - `bench fqi` times whole FQI / B-FQI runs with Extra-Trees;
 //! - `bench search` measures the main job, `bfqi-ga search <env>` at its default spec: units of
 //!   chosen chromosomes, the kernels against the machine's FMA peak, and the projected wall time
-//!   of a whole search.
+//!   of a whole search;
+//! - `bench dashboard` times the requests of a search page's first paint on the committed bicycle
+//!   search, and the memory serving them takes.
 //!
 //! Given a Python (`--python PY`) with scikit-learn, or Keras 3 and JAX, each also runs the
 //! reference a researcher would otherwise use on the same data in the same run, for ratios that a
 //! drifting shared machine cannot fake. The reference scripts are this repository's `scripts/`,
 //! built into the binary and written to a temporary folder when needed.
 
+mod dashboard;
 mod fqi;
 mod learners;
 mod search;
 
+pub use dashboard::dashboard;
 pub use fqi::fqi;
 pub use learners::learners;
 pub use search::{SearchBench, search};
@@ -35,6 +39,8 @@ pub enum Target {
     Fqi,
     /// Search units at the default specs, and a whole search's projected time.
     Search,
+    /// The dashboard's first paint of the committed bicycle search, and its memory.
+    Dashboard,
 }
 
 /// The reference scripts, by file name (the copies in `scripts/`).

@@ -3,10 +3,12 @@
 //! library per command. What a command computes lives in the library; here are only the arguments,
 //! the calls and what is printed.
 
+mod dashboard;
 mod jobs;
 mod models;
 mod runs;
 
+pub use dashboard::DashboardArgs;
 pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StatusArgs, ValidateArgs};
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
@@ -49,6 +51,8 @@ pub enum Command {
     Batch(Box<BatchArgs>),
     /// One line per run under results/: state, generation, best fitness.
     Status(StatusArgs),
+    /// A read-only local web view of the runs under results/ (or given folders).
+    Dashboard(DashboardArgs),
     /// Regenerate tables, plots and report.md from stored results.
     Report(ReportArgs),
     /// Write a random-policy dataset as CSV.
@@ -88,6 +92,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         Command::Validate(a) => jobs::validate(a),
         Command::Status(a) => jobs::status(a),
         Command::Report(a) => jobs::report(a),
+        Command::Dashboard(a) => dashboard::dashboard(a),
         Command::Reproduce(a) => models::reproduce(a),
         Command::Fitness(a) => models::fitness(a),
         Command::Rollout(a) => models::rollout(*a),

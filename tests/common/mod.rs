@@ -137,3 +137,64 @@ pub fn tiny_with(extra: &[&str]) -> Vec<String> {
     }
     args
 }
+
+/// A response read by [`http_get`]: status, the headers' lines, body (as sent, and as text with
+/// anything not UTF-8 replaced, so an image's bytes can be checked and a page's text searched).
+pub struct Http {
+    pub status: u16,
+    pub headers: String,
+    pub bytes: Vec<u8>,
+    pub body: String,
+}
+
+impl Http {
+    /// The value of a header (case-insensitive name), if sent.
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers.lines().find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            k.trim().eq_ignore_ascii_case(name).then(|| v.trim())
+        })
+    }
+}
+
+/// One HTTP/1.1 request to `base` (`http://host:port/`) for `path`, sent as written (so `..` and
+/// odd encodings reach the server unchanged), the connection closed after it.
+pub fn http_request(base: &str, method: &str, path: &str) -> Http {
+    use std::io::{Read, Write};
+    let addr = base.trim_start_matches("http://").trim_end_matches('/');
+    let mut s = std::net::TcpStream::connect(addr).unwrap_or_else(|e| panic!("{addr}: {e}"));
+    write!(s, "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let end = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("the end of the headers");
+    let head = String::from_utf8_lossy(&raw[..end]).into_owned();
+    let (status_line, headers) = head.split_once("\r\n").unwrap_or((&head, ""));
+    let status = status_line.split_whitespace().nth(1).and_then(|c| c.parse().ok()).expect("a status code");
+    let mut r = Http { status, headers: headers.to_string(), bytes: Vec::new(), body: String::new() };
+    let body = &raw[end + 4..];
+    let chunked = r.header("transfer-encoding").is_some_and(|t| t.eq_ignore_ascii_case("chunked"));
+    // Chunks are cut at byte counts, possibly inside a character: joined before decoding.
+    r.bytes = if chunked { dechunk(body) } else { body.to_vec() };
+    r.body = String::from_utf8_lossy(&r.bytes).into_owned();
+    r
+}
+
+/// A chunked body's content: hex sizes, each chunk followed by CRLF, up to the empty chunk.
+fn dechunk(mut s: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    loop {
+        let eol = s.windows(2).position(|w| w == b"\r\n").expect("a chunk size line");
+        let size = std::str::from_utf8(&s[..eol]).unwrap();
+        let n = usize::from_str_radix(size.split(';').next().unwrap().trim(), 16).expect("a hex chunk size");
+        if n == 0 {
+            return out;
+        }
+        out.extend_from_slice(&s[eol + 2..eol + 2 + n]);
+        s = &s[eol + 2 + n + 2..];
+    }
+}
+
+/// [`http_request`] with GET.
+pub fn http_get(base: &str, path: &str) -> Http {
+    http_request(base, "GET", path)
+}

@@ -1,0 +1,193 @@
+//! The runs page's rows, and the pages of comparisons, batches and rollouts: read from their
+//! small files (`state.json`, `run.json`, `summary.csv`, `report.md`, `batch.json`), never
+//! from every unit.
+
+use super::discover::{Kind, Roots, Run};
+use super::search::{plain, state};
+use super::table::{Cell, Table, num};
+use crate::ga::records::Phase;
+use crate::ga::units::describe;
+use crate::progress::human;
+use crate::store::{RunLock, read_json};
+use serde_json::{Value, json};
+use std::path::Path;
+
+/// The runs table: every search, comparison, batch and rollout under the roots.
+pub fn table(roots: &Roots) -> Table {
+    let mut t = Table::new(
+        "runs",
+        "Runs",
+        &["run", "kind", "env", "state", "generation", "best fitness", "settings", "progress", "ETA"],
+    );
+    for run in roots.runs() {
+        t.push(row(&run, roots));
+    }
+    t
+}
+
+fn info(dir: &Path) -> Value {
+    read_json(&dir.join("run.json")).unwrap_or_default()
+}
+
+fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
+    let info = info(&run.dir);
+    let env = info["env"].as_str().map(String::from);
+    let cells = |state: String, generation: String, best: String, settings: String, progress: String, eta: String| {
+        vec![
+            Cell::link(run.label(roots), run.url()),
+            Cell::text(run.kind.name()),
+            Cell::text(env.clone().unwrap_or_else(|| "—".into())),
+            Cell::text(state),
+            Cell::text(generation),
+            Cell::text(best),
+            Cell::text(settings),
+            Cell::text(progress),
+            Cell::text(eta),
+        ]
+    };
+    let dash = || "—".to_string();
+    match run.kind {
+        Kind::Search => match state(&run.dir) {
+            Some((st, phase)) => cells(
+                phase.name().into(),
+                format!("{}/{}", st.generation, st.generations),
+                num(st.best_fitness),
+                st.best.as_ref().map_or_else(dash, describe),
+                if st.units_total > 0 { format!("units {}/{}", st.units_done, st.units_total) } else { dash() },
+                match phase {
+                    Phase::Running => st.eta_seconds.map_or("?".into(), human),
+                    _ => dash(),
+                },
+            ),
+            None => cells("unreadable".into(), dash(), dash(), dash(), dash(), dash()),
+        },
+        Kind::Compare => {
+            let done = std::fs::read_dir(run.dir.join("units")).map_or(0, |d| d.count());
+            let state = if RunLock::is_held(&run.dir) {
+                "running"
+            } else if run.dir.join("report.md").is_file() {
+                "finished"
+            } else {
+                "interrupted"
+            };
+            let settings = format!("{} · {}", plain(&info["learner"]), plain(&info["analysis"]));
+            cells(state.into(), dash(), dash(), settings, format!("{done} units"), dash())
+        }
+        Kind::Batch => {
+            let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+            let done = jobs.iter().filter(|j| j["state"] == "finished").count();
+            cells(
+                if RunLock::is_held(&run.dir) { "running" } else { "stopped" }.into(),
+                dash(),
+                dash(),
+                format!("{} jobs", jobs.len()),
+                format!("{done}/{} jobs finished", jobs.len()),
+                dash(),
+            )
+        }
+        Kind::Rollout => {
+            let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+            let env = r["info"]["env"]["name"].as_str().unwrap_or("—").to_string();
+            let mut c = cells("finished".into(), dash(), dash(), plain(&r["info"]["source"]), dash(), dash());
+            c[2] = Cell::text(env);
+            c
+        }
+    }
+}
+
+/// The images of a run directory to show (PNG plots and GIF animations), as `/file/` links.
+pub fn images(run: &Run, ext: &str) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = std::fs::read_dir(&run.dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(ext) && !n.starts_with('.'))
+        .map(|n| {
+            let rel = if run.rel.is_empty() { n.clone() } else { format!("{}/{n}", run.rel) };
+            (n, format!("/file/{}/{}", run.root, super::html::encode_path(&rel)))
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+/// A comparison's page: its summary (curves with 95 % bands drawn from it) and the claims its
+/// report states, with the thesis's statement beside each verdict.
+pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
+    let text = std::fs::read_to_string(run.dir.join("summary.csv")).unwrap_or_default();
+    let mut lines = text.lines();
+    let cols: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let mut t = Table::new("summary", "Summary (mean, std and 95 % interval per point)", &cols);
+    let mut series: Vec<Value> = Vec::new();
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() != cols.len() {
+            continue; // a line being written
+        }
+        let get = |k: &str| cols.iter().position(|c| *c == k).map(|i| f[i]).unwrap_or("");
+        series.push(json!({
+            "analysis": get("analysis"), "learner": get("learner"), "algorithm": get("algorithm"),
+            "complexity": get("complexity"), "episodes": get("episodes"),
+            "iteration": get("iteration").parse::<f64>().ok(), "mean": get("mean").parse::<f64>().ok(),
+            "ci95": get("ci95").parse::<f64>().ok(),
+        }));
+        t.push(f.iter().map(|s| Cell::text(*s)).collect());
+    }
+    let mut claims = Table::new("claims", "Thesis claims", &["the thesis says", "verdict here", "rule", "this run"]);
+    let report = std::fs::read_to_string(run.dir.join("report.md")).unwrap_or_default();
+    let mut lines = report.lines().skip_while(|l| !l.starts_with("## Thesis claims")).peekable();
+    while let Some(l) = lines.next() {
+        if let Some(rest) = l.strip_prefix("- **") {
+            let (verdict, statement) = rest.split_once("** — ").unwrap_or((rest, ""));
+            let mut next = |p: &str| lines.next().and_then(|x| x.trim().strip_prefix(p).map(String::from));
+            let rule = next("- rule: ").unwrap_or_default();
+            let evidence = next("- this run: ").unwrap_or_default();
+            claims.push(vec![Cell::text(statement), Cell::text(verdict), Cell::text(rule), Cell::text(evidence)]);
+        }
+    }
+    (vec![claims, t], json!({ "series": series }))
+}
+
+/// A batch's page: its jobs, linked to their run directories when those are served.
+pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
+    let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+    let mut t = Table::new("jobs", "Jobs", &["name", "kind", "state", "directory", "seconds", "result", "message"]);
+    for j in &jobs {
+        let dir = plain(&j["dir"]);
+        let link = [run.dir.join(&dir), std::path::PathBuf::from(&dir)]
+            .iter()
+            .find_map(|p| roots.contains(p))
+            .and_then(|(r, rel)| roots.run(r, &rel))
+            .map(|r| r.url());
+        t.push(vec![
+            Cell::text(plain(&j["name"])),
+            Cell::text(plain(&j["kind"])),
+            Cell::text(plain(&j["state"])),
+            match link {
+                Some(l) => Cell::link(&dir, l),
+                None => Cell::text(&dir),
+            },
+            Cell::text(j["seconds"].as_f64().map_or("—".into(), |s| format!("{s:.0}"))),
+            Cell::text(plain(&j["result"])),
+            Cell::text(plain(&j["message"])),
+        ]);
+    }
+    vec![t]
+}
+
+/// A rollout's page: its summary fields.
+pub fn rollout(run: &Run) -> Vec<Table> {
+    let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+    let mut t = Table::new("rollout", "Rollout", &["field", "value"]);
+    for (k, v) in r.as_object().into_iter().flatten() {
+        if k != "info" {
+            let s = plain(v);
+            t.push(vec![
+                Cell::text(k),
+                Cell::text(if s.len() > 200 { format!("{}…", &s[..s.floor_char_boundary(200)]) } else { s }),
+            ]);
+        }
+    }
+    vec![t]
+}

@@ -1,0 +1,316 @@
+//! A search's pages, read from `generations.jsonl`, `state.json`, `hall_of_fame.json` and
+//! `validation.json` (never its units), and a setting's page, read from that setting's units only.
+
+use super::discover::Run;
+use super::html::encode;
+use super::table::{Cell, Table, num};
+use crate::ga::records::{GenerationRecord, Phase, RunState};
+use crate::ga::units::{UnitResult, activation_name, describe, parse_setting_id, unit_id};
+use crate::ga::validate::{self, Validation};
+use crate::progress::human;
+use crate::store::{RunLock, read_json};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The generations recorded so far. A line that does not parse (the last one while it is being
+/// appended, or a damaged one) is skipped: the page shows what is whole.
+pub fn generations(dir: &Path) -> Vec<GenerationRecord> {
+    let text = std::fs::read_to_string(dir.join("generations.jsonl")).unwrap_or_default();
+    text.lines().filter_map(|l| serde_json::from_str(l).ok()).collect()
+}
+
+/// The state, with a run nobody holds the lock of shown as interrupted.
+pub fn state(dir: &Path) -> Option<(RunState, Phase)> {
+    let st: RunState = read_json(&dir.join("state.json")).ok()?;
+    let phase = match st.state {
+        Phase::Running if !RunLock::is_held(dir) => Phase::Interrupted,
+        s => s,
+    };
+    Some((st, phase))
+}
+
+/// One evaluated setting: its last record over the generations.
+struct Point {
+    id: String,
+    activation: &'static str,
+    delta_min: f64,
+    patience: usize,
+    fitness: Option<f64>,
+    partial: Option<f64>,
+    pruned: bool,
+    diverged: bool,
+    first: usize,
+}
+
+fn points(gens: &[GenerationRecord]) -> Vec<Point> {
+    let mut by: BTreeMap<String, Point> = BTreeMap::new();
+    for g in gens {
+        for ind in &g.individuals {
+            let p = by.entry(ind.setting.clone()).or_insert(Point {
+                id: ind.setting.clone(),
+                activation: activation_name(ind.decoded.activation),
+                delta_min: ind.decoded.delta_min,
+                patience: ind.decoded.patience,
+                fitness: None,
+                partial: None,
+                pruned: false,
+                diverged: false,
+                first: g.generation,
+            });
+            p.fitness = ind.fitness;
+            p.partial = ind.partial_mean();
+            p.pruned = ind.pruned;
+            p.diverged = !ind.pruned && ind.fitness.is_none();
+        }
+    }
+    by.into_values().collect()
+}
+
+/// The link to a setting's page.
+pub fn setting_url(run: &Run, id: &str) -> String {
+    format!("{}?setting={}", run.url(), encode(id))
+}
+
+/// The search page: its tables, and the chart data the script draws.
+pub fn page(run: &Run) -> (Vec<Table>, Value) {
+    let dir = &run.dir;
+    let gens = generations(dir);
+    let env = read_json::<Value>(&dir.join("run.json")).ok().and_then(|v| v["env"].as_str().map(String::from));
+    let validation = validate::load(dir);
+    let reference = env.as_deref().and_then(|e| validation.as_ref()?.thesis_fitness(e));
+    let pts = points(&gens);
+
+    let mut g = Table::new(
+        "generations",
+        "Generations",
+        &["generation", "best", "mean", "min", "std", "diverged", "pruned", "new units", "best so far"],
+    );
+    for r in &gens {
+        let s = &r.stats;
+        g.push(vec![
+            Cell::text(r.generation.to_string()),
+            Cell::text(num(s.max)),
+            Cell::text(num(s.mean)),
+            Cell::text(num(s.min)),
+            Cell::text(num(s.std)),
+            Cell::text(s.diverged.to_string()),
+            Cell::text(s.pruned.to_string()),
+            Cell::text(r.new_units.to_string()),
+            Cell::text(num(r.best_so_far.fitness)),
+        ]);
+    }
+    let mut pop = Table::new(
+        "population",
+        "Population: every evaluated setting",
+        &["setting", "activation", "δ_min", "patience", "fitness", "state", "first generation"],
+    );
+    for p in &pts {
+        let state = if p.pruned {
+            format!("pruned (partial {})", num(p.partial))
+        } else if p.diverged {
+            "diverged".into()
+        } else {
+            "scored".into()
+        };
+        pop.push(vec![
+            Cell::link(&p.id, setting_url(run, &p.id)),
+            Cell::text(p.activation),
+            Cell::text(format!("{:e}", p.delta_min)),
+            Cell::text(p.patience.to_string()),
+            Cell::text(num(p.fitness)),
+            Cell::text(state),
+            Cell::text(p.first.to_string()),
+        ]);
+    }
+    let mut tables = vec![summary(run, &gens), g];
+    tables.push(hall_of_fame(run));
+    if let Some(v) = &validation {
+        tables.extend(validation_tables(run, v));
+    }
+    tables.push(pop);
+    let chart = json!({
+        "generations": gens.iter().map(|r| json!({
+            "g": r.generation, "best": r.stats.max, "mean": r.stats.mean, "min": r.stats.min,
+            "max": r.stats.max, "best_so_far": r.best_so_far.fitness,
+        })).collect::<Vec<_>>(),
+        "points": pts.iter().map(|p| json!({
+            "id": p.id, "activation": p.activation, "delta_min": p.delta_min, "patience": p.patience,
+            "fitness": p.fitness, "partial": p.partial, "pruned": p.pruned, "diverged": p.diverged,
+            "first": p.first, "url": setting_url(run, &p.id),
+        })).collect::<Vec<_>>(),
+        "reference": reference.map(|f| json!({"label": "thesis optimum", "value": f})),
+    });
+    (tables, chart)
+}
+
+fn summary(run: &Run, gens: &[GenerationRecord]) -> Table {
+    let mut t = Table::new("summary", "State", &["state", "generation", "best fitness", "best setting", "ran", "ETA"]);
+    if let Some((st, phase)) = state(&run.dir) {
+        t.push(vec![
+            Cell::text(phase.name()),
+            Cell::text(format!("{}/{}", st.generation, st.generations)),
+            Cell::text(num(st.best_fitness)),
+            Cell::text(st.best.as_ref().map_or("—".into(), describe)),
+            Cell::text(human(st.elapsed())),
+            Cell::text(match phase {
+                Phase::Running => st.eta_seconds.map_or("?".into(), human),
+                _ => "—".into(),
+            }),
+        ]);
+    } else {
+        t.push(vec![Cell::text("unreadable state.json"), Cell::text(gens.len().to_string())]);
+    }
+    t
+}
+
+fn hall_of_fame(run: &Run) -> Table {
+    let mut t = Table::new("hall_of_fame", "Hall of fame", &["rank", "setting", "fitness", "generation"]);
+    let hof: Vec<Value> = read_json(&run.dir.join("hall_of_fame.json")).unwrap_or_default();
+    for (i, e) in hof.iter().enumerate() {
+        let id = serde_json::from_value(e["decoded"].clone()).ok().map(|d| crate::ga::units::setting_id(&d));
+        let id = id.unwrap_or_else(|| "?".into());
+        t.push(vec![
+            Cell::text((i + 1).to_string()),
+            Cell::link(&id, setting_url(run, &id)),
+            Cell::text(num(e["fitness"].as_f64())),
+            Cell::text(e["generation"].as_u64().map_or("?".into(), |g| g.to_string())),
+        ]);
+    }
+    t
+}
+
+fn validation_tables(run: &Run, v: &Validation) -> Vec<Table> {
+    let ci =
+        |s: &Option<crate::stats::Summary>| s.map_or("diverged".into(), |s| format!("{:.4} ± {:.4}", s.mean, s.ci95));
+    let mut t = Table::new(
+        "validation",
+        &format!("Validation on {} fresh datasets", v.rule.datasets),
+        &["source", "setting", "fitness (search)", "search mean ± 95 %", "validation mean ± 95 %", "tuned"],
+    );
+    for e in &v.entries {
+        t.push(vec![
+            Cell::text(&e.source),
+            Cell::link(&e.setting, setting_url(run, &e.setting)),
+            Cell::text(num(e.fitness)),
+            Cell::text(ci(&e.search)),
+            Cell::text(ci(&e.validation)),
+            Cell::text(if e.setting == v.tuned { "yes" } else { "" }),
+        ]);
+    }
+    let mut out = vec![t];
+    // The race rounds, once validation.json records them: each round's fields as columns.
+    let raw: Value = read_json(&run.dir.join("validation.json")).unwrap_or_default();
+    if let Some(rounds) = raw["rounds"].as_array().filter(|r| !r.is_empty()) {
+        let cols: Vec<String> = rounds[0].as_object().map(|o| o.keys().cloned().collect()).unwrap_or_default();
+        let mut r = Table::new("race_rounds", "Validation race rounds", &[]);
+        r.columns = cols.clone();
+        for round in rounds {
+            r.push(cols.iter().map(|c| Cell::text(plain(&round[c]))).collect());
+        }
+        out.push(r);
+    }
+    out
+}
+
+/// A JSON value as table text: strings bare, the rest as JSON.
+pub fn plain(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        Value::Null => "—".into(),
+        other => other.to_string(),
+    }
+}
+
+/// A setting's page: its per-dataset scores, FQI iterations and networks, and its births. Reads
+/// only that setting's unit files. `None` when the id is not a setting.
+pub fn setting_page(run: &Run, id: &str) -> Option<Vec<Table>> {
+    let decoded = parse_setting_id(id)?;
+    let mut scores = Table::new(
+        "datasets",
+        "Per dataset",
+        &["dataset", "score", "steps", "diverged", "epochs", "seconds", "FQI iterations"],
+    );
+    let mut iters = Table::new(
+        "iterations",
+        "FQI iterations",
+        &["dataset", "iteration", "score", "Bellman residual", "epochs", "stop reasons"],
+    );
+    let mut nets = Table::new(
+        "networks",
+        "Networks per iteration",
+        &["dataset", "iteration", "network", "epochs", "stop", "train loss", "val loss"],
+    );
+    for d in 0.. {
+        let path = run.dir.join("units").join(format!("{}.json", unit_id(&decoded, d)));
+        if !path.is_file() {
+            break;
+        }
+        let Ok(u) = read_json::<UnitResult>(&path) else { continue };
+        scores.push(vec![
+            Cell::text(d.to_string()),
+            Cell::text(num(u.score)),
+            Cell::text(num(u.steps)),
+            Cell::text(
+                u.diverged.as_ref().map_or(String::new(), |x| format!("iteration {}: {}", x.iteration, x.reason)),
+            ),
+            Cell::text(u.epochs.to_string()),
+            Cell::text(format!("{:.1}", u.seconds)),
+            Cell::text(u.iterations.len().to_string()),
+        ]);
+        for it in &u.iterations {
+            let mut stops: BTreeMap<String, usize> = BTreeMap::new();
+            for (k, n) in it.networks.iter().enumerate() {
+                let stop = plain(&serde_json::to_value(n.stop).unwrap_or_default());
+                *stops.entry(stop.clone()).or_default() += 1;
+                nets.push(vec![
+                    Cell::text(d.to_string()),
+                    Cell::text(it.iteration.to_string()),
+                    Cell::text(k.to_string()),
+                    Cell::text(n.epochs.to_string()),
+                    Cell::text(stop),
+                    Cell::text(n.train_loss.map_or("—".into(), |x| format!("{x:.3e}"))),
+                    Cell::text(n.val_loss.map_or("—".into(), |x| format!("{x:.3e}"))),
+                ]);
+            }
+            iters.push(vec![
+                Cell::text(d.to_string()),
+                Cell::text(it.iteration.to_string()),
+                Cell::text(num(it.score)),
+                Cell::text(format!("{:.4}", it.bellman_residual)),
+                Cell::text(it.epochs.map_or("—".into(), |e| e.to_string())),
+                Cell::text(stops.iter().map(|(s, n)| format!("{s}×{n}")).collect::<Vec<_>>().join(" ")),
+            ]);
+        }
+    }
+    let gens = generations(&run.dir);
+    let mut births = Table::new(
+        "births",
+        "Births",
+        &["generation", "index", "origin", "parents", "crossed genes", "mutated", "genes", "fitness"],
+    );
+    for (gi, g) in gens.iter().enumerate() {
+        for ind in g.individuals.iter().filter(|i| i.setting == id) {
+            let prev = gi.checked_sub(1).and_then(|p| gens.get(p));
+            let parents: Vec<Cell> = ind
+                .birth
+                .iter()
+                .flat_map(|b| b.parents)
+                .map(|p| prev.and_then(|g| g.individuals.get(p)).map_or(format!("#{p}"), |i| i.setting.clone()))
+                .map(Cell::text)
+                .collect();
+            let parents = parents.iter().map(|c| c.text.clone()).collect::<Vec<_>>().join(" × ");
+            births.push(vec![
+                Cell::text(g.generation.to_string()),
+                Cell::text(ind.index.to_string()),
+                Cell::text(plain(&serde_json::to_value(ind.origin).unwrap_or_default())),
+                Cell::text(parents),
+                Cell::text(ind.birth.as_ref().map_or(String::new(), |b| format!("{:?}", b.crossed))),
+                Cell::text(ind.birth.as_ref().map_or(String::new(), |b| if b.mutated { "yes" } else { "no" }.into())),
+                Cell::text(format!("{:?}", ind.genes)),
+                Cell::text(num(ind.fitness)),
+            ]);
+        }
+    }
+    Some(vec![scores, iters, births, nets])
+}

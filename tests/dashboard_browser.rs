@@ -1,0 +1,293 @@
+//! The dashboard in a real browser: headless Chromium, driven over the DevTools protocol on a pipe
+//! (`--remote-debugging-pipe`), opens a tiny search's page, sees one point per evaluated setting,
+//! sees a further generation appear while the page stays open (no reload), renders hostile names
+//! as text, and saves screenshots. Skipped, saying why, only where Chromium cannot start.
+
+mod common;
+use common::{bin, copy_dir, empty_dir, read, tiny_with};
+
+use serde_json::{Value, json};
+use std::collections::BTreeSet;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
+use std::time::{Duration, Instant};
+
+/// A headless Chromium and one page in it, spoken to in DevTools protocol messages (JSON, each
+/// ended by a NUL byte) over the pipe Chromium reads on fd 3 and writes on fd 4.
+struct Browser {
+    child: Child,
+    to: ChildStdin,
+    from: Receiver<Value>,
+    next: u64,
+    session: Option<String>,
+}
+
+impl Browser {
+    fn start(profile: &Path) -> Result<Browser, String> {
+        if Command::new("chromium").arg("--version").output().is_err() {
+            return Err("no `chromium` on PATH (Debian: apt-get install chromium)".into());
+        }
+        // The shell hands the child's stdin and stdout to Chromium as fds 3 and 4.
+        let script = format!(
+            "exec chromium --headless --no-sandbox --disable-gpu --disable-dev-shm-usage --hide-scrollbars \
+             --no-first-run --window-size=1400,1100 --user-data-dir='{}' --remote-debugging-pipe about:blank \
+             3<&0 4>&1 0</dev/null 1>/dev/null 2>/dev/null",
+            profile.display()
+        );
+        let mut child = Command::new("sh")
+            .args(["-c", &script])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("cannot start chromium: {e}"))?;
+        let to = child.stdin.take().unwrap();
+        let mut out = child.stdout.take().unwrap();
+        let (tx, from) = channel();
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            let mut chunk = [0u8; 65536];
+            while let Ok(n) = out.read(&mut chunk) {
+                if n == 0 {
+                    break;
+                }
+                buf.extend_from_slice(&chunk[..n]);
+                while let Some(end) = buf.iter().position(|&b| b == 0) {
+                    let msg: Vec<u8> = buf.drain(..=end).collect();
+                    if let Ok(v) = serde_json::from_slice::<Value>(&msg[..msg.len() - 1])
+                        && tx.send(v).is_err()
+                    {
+                        return;
+                    }
+                }
+            }
+        });
+        let mut b = Browser { child, to, from, next: 0, session: None };
+        b.call("Browser.getVersion", json!({})).map_err(|e| format!("chromium does not answer: {e}"))?;
+        Ok(b)
+    }
+
+    /// Sends a command (to the page once one is attached) and waits for its result.
+    fn call(&mut self, method: &str, params: Value) -> Result<Value, String> {
+        self.next += 1;
+        let mut msg = json!({ "id": self.next, "method": method, "params": params });
+        if let Some(s) = &self.session
+            && !method.starts_with("Target.")
+            && !method.starts_with("Browser.")
+        {
+            msg["sessionId"] = json!(s);
+        }
+        let mut bytes = serde_json::to_vec(&msg).unwrap();
+        bytes.push(0);
+        self.to.write_all(&bytes).map_err(|e| e.to_string())?;
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.from.recv_timeout(left) {
+                Ok(v) if v["id"] == self.next => {
+                    return match v.get("error") {
+                        Some(e) => Err(format!("{method}: {e}")),
+                        None => Ok(v["result"].clone()),
+                    };
+                }
+                Ok(_) => {} // an event
+                Err(RecvTimeoutError::Timeout) => return Err(format!("{method}: no answer in 60 s")),
+                Err(RecvTimeoutError::Disconnected) => return Err(format!("{method}: chromium exited")),
+            }
+        }
+    }
+
+    /// Opens `url` in a new page and attaches to it.
+    fn open(&mut self, url: &str) {
+        let t = self.call("Target.createTarget", json!({ "url": url })).unwrap();
+        let s = self.call("Target.attachToTarget", json!({ "targetId": t["targetId"], "flatten": true })).unwrap();
+        self.session = Some(s["sessionId"].as_str().unwrap().to_string());
+    }
+
+    /// The value of a JavaScript expression in the page.
+    fn eval(&mut self, expr: &str) -> Value {
+        let r = self.call("Runtime.evaluate", json!({ "expression": expr, "returnByValue": true })).unwrap();
+        assert!(r.get("exceptionDetails").is_none(), "{expr}: {r}");
+        r["result"]["value"].clone()
+    }
+
+    /// Waits until `expr` evaluates to `want`; fails with the last value after `secs`.
+    fn wait_for(&mut self, expr: &str, want: &Value, secs: u64) {
+        let deadline = Instant::now() + Duration::from_secs(secs);
+        loop {
+            let v = self.eval(expr);
+            if &v == want {
+                return;
+            }
+            assert!(Instant::now() < deadline, "{expr}: {v} after {secs} s, want {want}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// Saves the page as a PNG.
+    fn screenshot(&mut self, path: &Path) {
+        let r = self.call("Page.captureScreenshot", json!({ "format": "png" })).unwrap();
+        let png = base64(r["data"].as_str().unwrap());
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+        std::fs::write(path, png).unwrap();
+        println!("screenshot: {}", path.display());
+    }
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.call("Browser.close", json!({}));
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Standard base64 (the screenshots' encoding).
+fn base64(s: &str) -> Vec<u8> {
+    let val = |c: u8| match c {
+        b'A'..=b'Z' => c - b'A',
+        b'a'..=b'z' => c - b'a' + 26,
+        b'0'..=b'9' => c - b'0' + 52,
+        b'+' => 62,
+        b'/' => 63,
+        _ => panic!("not base64: {c}"),
+    };
+    let digits: Vec<u8> = s.bytes().filter(|&c| c != b'=' && !c.is_ascii_whitespace()).map(val).collect();
+    let mut out = Vec::with_capacity(digits.len() * 3 / 4);
+    for q in digits.chunks(4) {
+        let n = q.iter().enumerate().fold(0u32, |n, (i, &d)| n | (u32::from(d) << (18 - 6 * i)));
+        out.extend_from_slice(&n.to_be_bytes()[1..q.len()]);
+    }
+    out
+}
+
+/// `bfqi-ga dashboard` as a child process; killed when dropped.
+struct Server {
+    child: Child,
+    url: String,
+}
+
+impl Server {
+    fn start(roots: &[&Path]) -> Server {
+        let mut child =
+            bin().arg("dashboard").args(roots).args(["--port", "0"]).stdout(Stdio::piped()).spawn().unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let url = line.trim().strip_prefix("bfqi-ga dashboard: ").unwrap_or_else(|| panic!("{line}")).to_string();
+        Server { child, url }
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn settings(dir: &Path) -> BTreeSet<String> {
+    read(dir.join("generations.jsonl"))
+        .lines()
+        .flat_map(|l| {
+            let g: Value = serde_json::from_str(l).unwrap();
+            g["individuals"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|i| i["setting"].as_str().unwrap().to_string())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn screenshots() -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("dashboard-screenshots");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn the_page_shows_every_setting_and_a_new_generation_without_a_reload() {
+    let top = empty_dir("dashboard-browser", "live");
+    let root = top.join("served");
+    let run = root.join("run");
+    let o = bin().args(["search", "cartpole", "--out"]).arg(&run).args(tiny_with(&[])).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The same run under a name a browser would run as markup if it were not escaped.
+    copy_dir(&run, &root.join("<img src=x onerror=window.pwned=1>"));
+
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let server = Server::start(&[&root]);
+    let shots = screenshots();
+
+    browser.open(&format!("{}run/0/run", server.url));
+    let before = settings(&run).len();
+    let points = "document.querySelectorAll('#explorer .pt').length";
+    let generations = "document.querySelectorAll('table[data-table=generations] tbody tr').length";
+    browser.wait_for(points, &json!(before), 30);
+    browser.wait_for(generations, &json!(2), 5);
+    // A mark on this page's window: a reload would lose it.
+    browser.eval("window.stayed = 'yes'");
+    let draws = browser.eval("window.dashboardDrawn.count").as_u64().unwrap();
+    browser.screenshot(&shots.join("search-2-generations.png"));
+
+    // A third generation, written by the search itself while the page is open.
+    let o = bin().args(["search", "--resume"]).arg(&run).args(["--generations", "3", "--quiet"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let after = settings(&run).len();
+    assert!(after > before, "the third generation brings new settings: {before} → {after}");
+    browser.wait_for(points, &json!(after), 30);
+    browser.wait_for(generations, &json!(3), 5);
+    assert_eq!(browser.eval("window.stayed"), json!("yes"), "updated in place, not reloaded");
+    assert!(browser.eval("window.dashboardDrawn.count").as_u64().unwrap() > draws);
+    // The fitness chart follows too: a point per generation on its best-so-far line.
+    let chart = browser.eval("document.querySelector('#fitness svg').textContent");
+    assert!(chart.as_str().unwrap().contains("Fitness per generation"), "{chart}");
+    browser.screenshot(&shots.join("search-3-generations.png"));
+
+    // A setting's page from the explorer's links.
+    let href = browser.eval("document.querySelector('#explorer a').getAttribute('href')");
+    browser.open(&format!("{}{}", server.url.trim_end_matches('/'), href.as_str().unwrap()));
+    browser.wait_for("document.querySelectorAll('table[data-table=datasets] tbody tr').length", &json!(2), 30);
+    browser.screenshot(&shots.join("setting.png"));
+
+    // The hostile name shows as text: no image element, no script ran.
+    browser.open(&server.url);
+    browser.wait_for("document.querySelectorAll('table[data-table=runs] tbody tr').length", &json!(2), 30);
+    assert_eq!(browser.eval("document.querySelectorAll('img').length"), json!(0));
+    assert_eq!(browser.eval("document.body.textContent.includes('<img src=x onerror=window.pwned=1>')"), json!(true));
+    // Its copy was taken before the third generation: the first two generations' settings.
+    browser.open(&format!("{}run/0/%3Cimg%20src%3Dx%20onerror%3Dwindow.pwned%3D1%3E", server.url));
+    browser.wait_for(points, &json!(before), 30);
+    assert_eq!(browser.eval("typeof window.pwned"), json!("undefined"));
+    assert_eq!(browser.eval("document.scripts.length"), json!(1), "only the dashboard's own script");
+}
+
+#[test]
+fn the_committed_bicycle_search_draws_every_setting() {
+    let top = empty_dir("dashboard-browser", "bicycle");
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let searches = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches");
+    let server = Server::start(&[&searches]);
+    let n = settings(&searches.join("bicycle")).len();
+    browser.open(&format!("{}run/0/bicycle", server.url));
+    browser.wait_for("document.querySelectorAll('#explorer .pt').length", &json!(n), 30);
+    // From navigation start to the charts drawn from the first poll: the first useful paint.
+    let ms = browser.eval("window.dashboardDrawn.firstMs").as_f64().unwrap();
+    println!("bicycle search ({n} settings): charts drawn {ms:.0} ms after navigation start");
+    // Printed, not asserted: speed is the bench's (`bfqi-ga bench dashboard`), not a test's.
+    browser.screenshot(&screenshots().join("bicycle.png"));
+}
