@@ -387,8 +387,7 @@ impl Spec {
 
     /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.
     pub fn hash(&self) -> String {
-        let text = serde_json::to_string(self).expect("a spec serialises");
-        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+        crate::store::json_hash(self)
     }
 
     /// Deserialises and validates a JSON value; `origin` names it in errors.
