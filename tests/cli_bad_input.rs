@@ -63,7 +63,34 @@ fn type_errors_inside_env_and_learners_keep_the_whole_path() {
     let s = write(&d, "learner.json", &full(r#"{"experiments": {"mlp": {"learner": {"hidden": "wide"}}}}"#));
     refused(&d, &["search", &s], &["learner.json: field experiments.mlp.learner.hidden: invalid type"]);
     let s = write(&d, "kind.json", &full(r#"{"experiments": {"et": {"learner": {"kind": "forest"}}}}"#));
-    refused(&d, &["search", &s], &["kind.json: field experiments.et.learner: unknown variant `forest`"]);
+    refused(&d, &["search", &s], &["kind.json: field experiments.et.learner.kind: unknown variant `forest`"]);
+}
+
+#[test]
+fn a_tagged_objects_bad_tag_is_named_with_the_tag_in_its_path() {
+    let d = empty_dir("bad", "tags");
+    let s = write(&d, "name.json", &patched("cartpole", r#"{"env": {"name": "CARTPOLE"}}"#));
+    refused(&d, &["search", &s], &["name.json: field env.name: unknown variant `CARTPOLE`", "`cartpole`"]);
+    let mut v: serde_json::Value = serde_json::from_str(&patched("cartpole", "{}")).unwrap();
+    v["experiments"]["mlp"]["claims"][0]["rule"] = serde_json::json!("bogus");
+    let s = write(&d, "rule.json", &v.to_string());
+    refused(&d, &["search", &s], &["rule.json: field experiments.mlp.claims[0].rule: unknown variant `bogus`"]);
+    nothing_created(&d, &["name.json", "rule.json"]);
+}
+
+#[test]
+fn an_empty_array_where_an_object_belongs_is_refused() {
+    let d = empty_dir("bad", "array-object");
+    let s = write(&d, "net.json", &patched("cartpole", r#"{"search": {"network": []}}"#));
+    refused(
+        &d,
+        &["search", &s, "--out", "run"],
+        &["net.json: field search.network: must be a JSON object, not an array"],
+    );
+    // A struct without defaults already refuses an empty array by its length.
+    let s = write(&d, "eval.json", &patched("cartpole", r#"{"env": {"eval": []}}"#));
+    refused(&d, &["search", &s, "--out", "run"], &["eval.json: field env.eval: invalid length 0"]);
+    nothing_created(&d, &["net.json", "eval.json"]);
 }
 
 #[test]
