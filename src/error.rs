@@ -182,7 +182,7 @@ pub(crate) fn unknown_tag<E: serde::de::Error>(tag: &str, value: &str, variants:
 }
 
 /// A number as a person reads it: `1e308`, not the 309 digits `f64`'s `Display` writes.
-fn short_number(s: String) -> String {
+pub(crate) fn short_number(s: String) -> String {
     match s.parse::<f64>() {
         Ok(x) if s.len() > 24 && x.is_finite() => format!("{x:e}"),
         _ => s,

@@ -198,6 +198,18 @@ impl SearchSpec {
         limits::within("ga.population", self.ga.population, 2, POPULATION)?;
         limits::within("stop.generations", self.stop.generations, 1, GENERATIONS)?;
         self.network.check().map_err(|e| e.within("network"))?;
+        // A fraction that holds out no row of even the largest dataset possible would fail at the
+        // first fit, after the run directory exists, as "bad data" naming no field.
+        let most = self.episodes.saturating_mul(horizon);
+        let f = self.network.validation_fraction;
+        ensure(
+            ((most as f64) * (1.0 - f)).floor() < most as f64,
+            "network.validation_fraction",
+            f,
+            &format!(
+                "too small: it holds out no row of {most} transitions (episodes × horizon, the most a dataset has)"
+            ),
+        )?;
         self.genes.validate().map_err(|e| e.within("genes"))?;
         let ga = &self.ga;
         for (f, v) in [("ga.elitism", ga.elitism), ("ga.parent_pool", ga.parent_pool)] {

@@ -135,10 +135,17 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
         &["search", &s, "--quick"],
         &["vf.json: invalid search.network.validation_fraction = 0.999: must be in (0, 0.5]"],
     );
+    let s = write(&d, "vf0.json", &patched("cartpole", r#"{"search": {"network": {"validation_fraction": 5e-324}}}"#));
+    let err = refused(
+        &d,
+        &["search", &s, "--quick", "--out", "run"],
+        &["vf0.json: invalid search.network.validation_fraction = 5e-324", "holds out no row"],
+    );
+    assert!(!err.contains("00000000000000000000"), "a 324-digit number: {err}");
     let s = write(&d, "pa.json", &patched("pendulum", r#"{"search": {"actions": "per_action"}}"#));
     refused(&d, &["search", &s], &["pa.json: invalid search.actions = per_action", "continuous"]);
     refused(&d, &["run", "pendulum", "--actions", "per-action"], &["invalid actions = per_action", "continuous"]);
-    nothing_created(&d, &["tau.json", "vf.json", "pa.json"]);
+    nothing_created(&d, &["tau.json", "vf.json", "vf0.json", "pa.json"]);
 }
 
 #[test]
