@@ -202,6 +202,13 @@ fn inputs_that_are_not_regular_files_or_repeat_a_key_are_refused() {
     // A `searches/<env>.json` that is not a file is refused, not replaced by the built-in copy.
     std::fs::create_dir_all(d.join("searches/cartpole.json")).unwrap();
     refused(&d, &["search", "cartpole"], &["searches/cartpole.json: is a directory, not a file"]);
+    std::fs::create_dir_all(d.join("searches/tuned/bicycle.json")).unwrap();
+    refused(
+        &d,
+        &["compare", "bicycle", "--tuned", "thesis", "--out", "cmp"],
+        &["searches/tuned/bicycle.json: is a directory, not a file"],
+    );
+    assert!(!d.join("cmp").exists());
 }
 
 #[test]
