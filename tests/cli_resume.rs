@@ -254,3 +254,29 @@ fn a_budget_stops_the_validation_and_a_resume_finishes_it() {
     assert_eq!(again["entries"], whole["entries"]);
     assert_eq!(again["note"], whole["note"]);
 }
+
+#[test]
+fn validate_names_an_unfinished_search_and_notes_a_replaced_validation() {
+    let d = empty_dir("resume", "revalidate");
+    let dir = d.join("run");
+    let o = search(&dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let validate = |extra: &[&str]| {
+        let o = bin().arg("validate").arg(&dir).args(["--quiet", "--top", "2"]).args(extra).output().unwrap();
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (code, err) = validate(&["--datasets", "2"]);
+    assert_eq!(code, Some(0), "{err}");
+    // Other caps replace validation.json: a note says so; the same caps again rewrite it silently.
+    let (code, err) = validate(&["--datasets", "3"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("validation.json: replaced by this validation"), "{err}");
+    let (_, err) = validate(&["--datasets", "3"]);
+    assert!(!err.contains("replaced"), "{err}");
+    // A search stopped before its first generation ended has no hall of fame yet.
+    std::fs::remove_file(dir.join("hall_of_fame.json")).unwrap();
+    let (code, err) = validate(&[]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("has no hall_of_fame.json: the search has not finished a generation yet"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+}
