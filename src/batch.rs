@@ -185,7 +185,11 @@ impl Plan {
     }
 }
 
-fn deser<T: serde::de::DeserializeOwned>(v: &serde_json::Value, label: &str, origin: &Path) -> Result<T> {
+fn deser<T: serde::de::DeserializeOwned + serde::Serialize>(
+    v: &serde_json::Value,
+    label: &str,
+    origin: &Path,
+) -> Result<T> {
     crate::error::from_json(v.clone(), origin, &format!("{label}: "))
 }
 

@@ -263,6 +263,16 @@ impl CompareConfig {
         Ok(c)
     }
 
+    /// The hash of everything in `compare.json` that determines a unit's result (all but the
+    /// claims, which decide how the report reads them), recorded in `run.json`.
+    pub fn results_hash(&self) -> String {
+        let mut c = self.clone();
+        for p in &mut c.learners {
+            p.claims.clear();
+        }
+        store::json_hash(&c)
+    }
+
     fn validate(&self) -> Result<()> {
         for u in self.units() {
             self.run_config(&u).validate()?;
@@ -401,6 +411,7 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": r.analysis, "learner": r.learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
+        "config_hash": cfg.results_hash(),
     });
     Ok((cfg, info))
 }
@@ -447,6 +458,107 @@ impl Comparison {
     pub fn ids(&self) -> Vec<String> {
         self.units.iter().map(|u| self.cfg.unit_id(u)).collect()
     }
+
+    fn unit(&self, id: &str) -> Option<&Unit> {
+        self.units.iter().find(|u| self.cfg.unit_id(u) == id)
+    }
+
+    /// A unit's stored result: `Ok(None)` if there is no file, `Err` with what is wrong if it does
+    /// not parse, holds another dataset, or its checksum or configuration hash disagrees (units
+    /// written before these were recorded carry neither and are read as before).
+    pub fn verified(&self, u: &Unit) -> std::result::Result<Option<DatasetResult>, String> {
+        let path = self.store.path(&self.cfg.unit_id(u));
+        if !path.is_file() {
+            return Ok(None);
+        }
+        let r: DatasetResult = read_json(&path).map_err(|e| format!("unreadable ({e})"))?;
+        if r.dataset != u.dataset {
+            return Err(format!("holds dataset {}, not {}", r.dataset, u.dataset));
+        }
+        if r.checksum.as_ref().is_some_and(|c| *c != r.content_checksum()) {
+            return Err("its checksum does not match its content (damaged or edited)".into());
+        }
+        match &r.spec_hash {
+            Some(h) if *h != self.cfg.run_config(u).hash() => Err(format!(
+                "computed with another configuration (hash {h}; compare.json gives {})",
+                self.cfg.run_config(u).hash()
+            )),
+            _ => Ok(Some(r)),
+        }
+    }
+
+    /// Refuses a `compare.json` changed since the run began (its results hash disagrees with the
+    /// one `run.json` records; runs created before it was recorded are not checked). `doing` says
+    /// what the change would spoil.
+    fn check_config(&self, dir: &Path, doing: &str) -> Result<()> {
+        let hash = self.cfg.results_hash();
+        match recorded_hash(dir)? {
+            Some(h) if h != hash => Err(Error::File {
+                path: dir.join("compare.json"),
+                message: format!(
+                    "changed since the run began (results hash {hash}, run.json records {h}): {doing}; restore it \
+                     or start a new run"
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
+}
+
+/// One line on the comparison in `dir` for `bfqi-ga status`: environment, learners and analyses,
+/// units stored of all, the directory, and what does not verify (a `compare.json` changed since
+/// the run began, stored units that are damaged, edited or of another configuration).
+pub fn status_line(dir: &Path) -> Result<String> {
+    let c = Comparison::open(dir)?;
+    let mut problems = Vec::new();
+    if let Err(e) = c.check_config(dir, "resuming or reporting it is refused") {
+        problems.push(e.to_string());
+    }
+    let (mut done, mut bad) = (0, Vec::new());
+    for u in &c.units {
+        match c.verified(u) {
+            Ok(Some(_)) => done += 1,
+            Ok(None) => {}
+            Err(p) => bad.push(format!("{}: {p}", c.store.path(&c.cfg.unit_id(u)).display())),
+        }
+    }
+    if let Some(first) = bad.first() {
+        problems.push(format!(
+            "{} stored unit{} do{} not verify (first {first}); compare --resume computes {} again",
+            bad.len(),
+            if bad.len() == 1 { "" } else { "s" },
+            if bad.len() == 1 { "es" } else { "" },
+            if bad.len() == 1 { "it" } else { "them" }
+        ));
+    }
+    let names: Vec<&str> = c.cfg.learners.iter().map(|p| p.name.as_str()).collect();
+    let analyses: Vec<String> = c
+        .cfg
+        .analyses
+        .iter()
+        .map(|a| serde_json::to_value(a).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default())
+        .collect();
+    let state = if done == c.units.len() { "compared" } else { "partial" };
+    Ok(format!(
+        "{:<9} {:<12} {} {}  units {done}/{}  {}{}",
+        c.cfg.env.env().name(),
+        state,
+        names.join("+"),
+        analyses.join("+"),
+        c.units.len(),
+        dir.display(),
+        problems.iter().map(|p| format!("  ! {p}")).collect::<String>()
+    ))
+}
+
+/// The results hash of `compare.json` that `run.json` records, if it does.
+fn recorded_hash(dir: &Path) -> Result<Option<String>> {
+    let p = dir.join("run.json");
+    if !p.is_file() {
+        return Ok(None);
+    }
+    let info: serde_json::Value = read_json(&p)?;
+    Ok(info["config_hash"].as_str().map(String::from))
 }
 
 impl Units for Comparison {
@@ -454,29 +566,26 @@ impl Units for Comparison {
         &self.store
     }
 
-    /// Whether a unit is stored whole: a file that does not parse (truncated by a kill or a full
-    /// disk, or damaged) is computed again, with a warning.
+    /// Whether a unit is stored whole and this configuration's: a file that does not parse
+    /// (truncated by a kill or a full disk, or damaged), whose checksum or configuration hash
+    /// disagrees, or that holds another unit is computed again, with a warning.
     fn stored(&self, id: &str) -> bool {
-        let p = self.store.path(id);
-        if !p.is_file() {
-            return false;
-        }
-        match read_json::<DatasetResult>(&p) {
-            Ok(_) => true,
-            Err(e) => {
-                eprintln!("warning: {e}; it will be computed again");
+        match self.unit(id).map(|u| self.verified(u)) {
+            Some(Ok(Some(_))) => true,
+            Some(Err(problem)) => {
+                eprintln!("warning: {}: {problem}; it will be computed again", self.store.path(id).display());
                 false
             }
+            _ => false,
         }
     }
 
     fn compute(&self, id: &str) -> Result<()> {
-        let u = self
-            .units
-            .iter()
-            .find(|u| self.cfg.unit_id(u) == id)
-            .ok_or_else(|| Error::invalid("unit", id, "is not a unit of this comparison"))?;
-        let r = run_dataset(&self.cfg.run_config(u), u.dataset, |_| {})?;
+        let u = self.unit(id).ok_or_else(|| Error::invalid("unit", id, "is not a unit of this comparison"))?;
+        let run = self.cfg.run_config(u);
+        let mut r = run_dataset(&run, u.dataset, |_| {})?;
+        r.spec_hash = Some(run.hash());
+        r.checksum = Some(r.content_checksum());
         write_json(&self.store.path(id), &r)
     }
 }
@@ -485,6 +594,14 @@ impl Units for Comparison {
 pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
     let comparison = Comparison::open(dir)?;
     let _lock = RunLock::acquire(dir)?;
+    comparison.check_config(dir, "resuming would mix results of two configurations")?;
+    let info_path = dir.join("run.json");
+    if info_path.is_file() && recorded_hash(dir)?.is_none() {
+        // A run created before the hash was recorded: record it now, so later edits are refused.
+        let mut info: serde_json::Value = read_json(&info_path)?;
+        info["config_hash"] = comparison.cfg.results_hash().into();
+        write_json(&info_path, &info)?;
+    }
     // What a kill can leave: a deleted units/ is made again, temporary files are removed.
     store::remove_temporaries(dir)?;
     comparison.store.prepare()?;
@@ -509,15 +626,25 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     })
 }
 
-/// Reads every unit of a finished comparison.
-pub fn collect(dir: &Path, cfg: &CompareConfig) -> Result<Vec<UnitRecord>> {
-    cfg.units()
-        .into_iter()
-        .map(|u| {
-            let p = UnitStore::units(dir).path(&cfg.unit_id(&u));
-            Ok(UnitRecord { unit: u, result: read_json(&p)? })
+/// Reads every unit of a finished comparison, refusing a `compare.json` changed since the run
+/// began and a unit that is missing or does not verify ([`Comparison::verified`]), naming it.
+pub fn collect(dir: &Path) -> Result<(CompareConfig, Vec<UnitRecord>)> {
+    let c = Comparison::open(dir)?;
+    c.check_config(dir, "the report would describe settings the units were not computed with")?;
+    let records = c
+        .units
+        .iter()
+        .map(|&u| {
+            let path = c.store.path(&c.cfg.unit_id(&u));
+            let refuse = |message: String| Error::File { path: path.clone(), message };
+            match c.verified(&u) {
+                Ok(Some(result)) => Ok(UnitRecord { unit: u, result }),
+                Ok(None) => Err(refuse("missing: resume the comparison (compare --resume) to compute it".into())),
+                Err(problem) => Err(refuse(format!("{problem}: resume the comparison to compute it again"))),
+            }
         })
-        .collect()
+        .collect::<Result<_>>()?;
+    Ok((c.cfg, records))
 }
 
 #[cfg(test)]

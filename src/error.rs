@@ -77,16 +77,40 @@ impl Error {
 
 /// Deserialises a JSON value read from `origin`; an error names the file and the field path
 /// (`field search.ga.population: invalid type …`), after `context` (e.g. `job 2 (c): `).
-pub fn from_json<T: serde::de::DeserializeOwned>(
+pub fn from_json<T: serde::de::DeserializeOwned + serde::Serialize>(
     value: serde_json::Value,
     origin: &std::path::Path,
     context: &str,
 ) -> Result<T> {
-    serde_path_to_error::deserialize(value).map_err(|e| {
+    let t: T = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
         let (path, inner) = joined(e);
         let message = if path == "." { format!("{context}{inner}") } else { format!("{context}field {path}: {inner}") };
         Error::File { path: origin.to_path_buf(), message }
-    })
+    })?;
+    // serde reads an array as a struct's fields in order, so `"network": []` would silently be
+    // the default network: where what was read writes back as an object, an array is refused.
+    if let Ok(read) = serde_json::to_value(&t)
+        && let Some(path) = array_for_object(&value, &read, String::new())
+    {
+        let message = format!("{context}field {path}: must be a JSON object, not an array");
+        return Err(Error::File { path: origin.to_path_buf(), message });
+    }
+    Ok(t)
+}
+
+/// The first field path at which `given` holds an array where `read` (the same document as
+/// deserialised and written back) holds an object.
+fn array_for_object(given: &serde_json::Value, read: &serde_json::Value, path: String) -> Option<String> {
+    use serde_json::Value::{Array, Object};
+    let join = |key: &str| if path.is_empty() { key.to_string() } else { format!("{path}.{key}") };
+    match (given, read) {
+        (Array(_), Object(_)) => Some(if path.is_empty() { ".".into() } else { path }),
+        (Object(g), Object(r)) => g.iter().find_map(|(k, v)| r.get(k).and_then(|rv| array_for_object(v, rv, join(k)))),
+        (Array(g), Array(r)) => {
+            g.iter().zip(r).enumerate().find_map(|(i, (v, rv))| array_for_object(v, rv, format!("{path}[{i}]")))
+        }
+        _ => None,
+    }
 }
 
 /// Refuses a JSON document that is not an object (serde would read an array as a struct's fields
@@ -149,8 +173,16 @@ pub(crate) fn take_tag<'de, D: serde::Deserializer<'de>>(
     }
 }
 
+/// Refuses an internally tagged enum's tag value that names no variant, with the tag in the field
+/// path (`env.name: unknown variant …`, not `env: …`): the tag is a field the user wrote.
+pub(crate) fn unknown_tag<E: serde::de::Error>(tag: &str, value: &str, variants: &'static [&'static str]) -> E {
+    use serde::de::Error as _;
+    let message = serde::de::value::Error::unknown_variant(value, variants).to_string();
+    E::custom(format!("{INNER}{tag}{INNER}{message}"))
+}
+
 /// A number as a person reads it: `1e308`, not the 309 digits `f64`'s `Display` writes.
-fn short_number(s: String) -> String {
+pub(crate) fn short_number(s: String) -> String {
     match s.parse::<f64>() {
         Ok(x) if s.len() > 24 && x.is_finite() => format!("{x:e}"),
         _ => s,

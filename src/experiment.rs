@@ -73,8 +73,7 @@ impl RunConfig {
 
     /// A short hash of the configuration's canonical JSON (recorded in model files).
     pub fn hash(&self) -> String {
-        let text = serde_json::to_string(self).expect("a run configuration serialises");
-        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+        crate::store::json_hash(self)
     }
 
     fn settings(&self) -> FqiSettings {
@@ -220,6 +219,22 @@ pub struct DatasetResult {
     /// Per-iteration records.
     #[serde(flatten)]
     pub record: RunRecord,
+    /// [`RunConfig::hash`] of the configuration that computed it, in a comparison's units: a unit
+    /// of another configuration is not reused. (Absent in `run` reports and in comparison units
+    /// written before it was recorded.)
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec_hash: Option<String>,
+    /// FNV-1a of the unit's JSON without this field, in a comparison's units: a damaged or edited
+    /// file is computed again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub checksum: Option<String>,
+}
+
+impl DatasetResult {
+    /// The checksum of the result's content (its JSON with `checksum` absent).
+    pub fn content_checksum(&self) -> String {
+        crate::store::json_hash(&DatasetResult { checksum: None, ..self.clone() })
+    }
 }
 
 /// Statistics over datasets at one iteration (diverged datasets excluded).
@@ -304,7 +319,7 @@ pub fn run_dataset_saving(
         };
         model::save(&model_path(dir, index), &Model { info, q })?;
     }
-    Ok(DatasetResult { dataset: index, transitions: data.len(), record })
+    Ok(DatasetResult { dataset: index, transitions: data.len(), record, spec_hash: None, checksum: None })
 }
 
 /// Where `run --save-model DIR` writes dataset `index`'s Q-function.

@@ -9,7 +9,7 @@ use crate::ga::search::{Evaluator, load_spec};
 use crate::ga::units::Role;
 use crate::ga::validate::{self, ValidateRule};
 use crate::run_dir::{Budget, Units};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// What a run directory holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,6 +31,33 @@ pub fn kind(dir: &Path) -> Result<RunKind> {
             path: dir.to_path_buf(),
             message: "not a comparison or search run directory (no compare.json or spec.json)".into(),
         })
+    }
+}
+
+/// The run directories under `root` (searches with a `state.json`, comparisons with a
+/// `compare.json`), sorted; a run's own folders are not searched further.
+pub fn find(root: &Path) -> Vec<PathBuf> {
+    let mut dirs = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        if d.join("state.json").is_file() || d.join("compare.json").is_file() {
+            dirs.push(d);
+            continue;
+        }
+        if let Ok(entries) = std::fs::read_dir(&d) {
+            stack.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+        }
+    }
+    dirs.sort();
+    dirs
+}
+
+/// One line on the run in `dir` for `bfqi-ga status`, by its kind, ending with what of it does not
+/// verify.
+pub fn status_line(dir: &Path) -> Result<String> {
+    match kind(dir)? {
+        RunKind::Compare => crate::compare::status_line(dir),
+        RunKind::Search => crate::ga::status::line(dir),
     }
 }
 

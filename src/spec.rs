@@ -206,6 +206,18 @@ impl SearchSpec {
         limits::within("ga.population", self.ga.population, 2, POPULATION)?;
         limits::within("stop.generations", self.stop.generations, 1, GENERATIONS)?;
         self.network.check().map_err(|e| e.within("network"))?;
+        // A fraction that holds out no row of even the largest dataset possible would fail at the
+        // first fit, after the run directory exists, as "bad data" naming no field.
+        let most = self.episodes.saturating_mul(horizon);
+        let f = self.network.validation_fraction;
+        ensure(
+            ((most as f64) * (1.0 - f)).floor() < most as f64,
+            "network.validation_fraction",
+            f,
+            &format!(
+                "too small: it holds out no row of {most} transitions (episodes × horizon, the most a dataset has)"
+            ),
+        )?;
         self.genes.validate().map_err(|e| e.within("genes"))?;
         let ga = &self.ga;
         for (f, v) in [("ga.elitism", ga.elitism), ("ga.parent_pool", ga.parent_pool)] {
@@ -503,8 +515,7 @@ impl Spec {
 
     /// A short, stable hash of the spec's canonical JSON (FNV-1a, 64 bits), recorded in tuned configs.
     pub fn hash(&self) -> String {
-        let text = serde_json::to_string(self).expect("a spec serialises");
-        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+        crate::store::json_hash(self)
     }
 
     /// Deserialises and validates a JSON value; `origin` names it in errors.

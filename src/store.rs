@@ -280,6 +280,12 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
     h
 }
 
+/// [`fnv1a`] of a value's compact JSON, as 16 hex digits: spec hashes and unit checksums.
+pub fn json_hash<T: serde::Serialize>(value: &T) -> String {
+    let text = serde_json::to_string(value).expect("a stored value serialises");
+    format!("{:016x}", fnv1a(text.as_bytes()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -155,7 +155,9 @@ impl TunedConfig {
     pub fn resolve(name_or_path: &str, env: &str) -> Result<(TunedConfig, PathBuf)> {
         if name_or_path == "thesis" {
             let local = PathBuf::from(format!("searches/tuned/{env}.json"));
-            if local.is_file() {
+            // Anything there is the user's: a directory or FIFO is refused by `load`, as at a
+            // spec's path, not silently replaced by the built-in copy.
+            if crate::store::something_at(&local) {
                 return Ok((Self::load(&local)?, local));
             }
             let (_, text) = THESIS

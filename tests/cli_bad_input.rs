@@ -63,7 +63,34 @@ fn type_errors_inside_env_and_learners_keep_the_whole_path() {
     let s = write(&d, "learner.json", &full(r#"{"experiments": {"mlp": {"learner": {"hidden": "wide"}}}}"#));
     refused(&d, &["search", &s], &["learner.json: field experiments.mlp.learner.hidden: invalid type"]);
     let s = write(&d, "kind.json", &full(r#"{"experiments": {"et": {"learner": {"kind": "forest"}}}}"#));
-    refused(&d, &["search", &s], &["kind.json: field experiments.et.learner: unknown variant `forest`"]);
+    refused(&d, &["search", &s], &["kind.json: field experiments.et.learner.kind: unknown variant `forest`"]);
+}
+
+#[test]
+fn a_tagged_objects_bad_tag_is_named_with_the_tag_in_its_path() {
+    let d = empty_dir("bad", "tags");
+    let s = write(&d, "name.json", &patched("cartpole", r#"{"env": {"name": "CARTPOLE"}}"#));
+    refused(&d, &["search", &s], &["name.json: field env.name: unknown variant `CARTPOLE`", "`cartpole`"]);
+    let mut v: serde_json::Value = serde_json::from_str(&patched("cartpole", "{}")).unwrap();
+    v["experiments"]["mlp"]["claims"][0]["rule"] = serde_json::json!("bogus");
+    let s = write(&d, "rule.json", &v.to_string());
+    refused(&d, &["search", &s], &["rule.json: field experiments.mlp.claims[0].rule: unknown variant `bogus`"]);
+    nothing_created(&d, &["name.json", "rule.json"]);
+}
+
+#[test]
+fn an_empty_array_where_an_object_belongs_is_refused() {
+    let d = empty_dir("bad", "array-object");
+    let s = write(&d, "net.json", &patched("cartpole", r#"{"search": {"network": []}}"#));
+    refused(
+        &d,
+        &["search", &s, "--out", "run"],
+        &["net.json: field search.network: must be a JSON object, not an array"],
+    );
+    // A struct without defaults already refuses an empty array by its length.
+    let s = write(&d, "eval.json", &patched("cartpole", r#"{"env": {"eval": []}}"#));
+    refused(&d, &["search", &s, "--out", "run"], &["eval.json: field env.eval: invalid length 0"]);
+    nothing_created(&d, &["net.json", "eval.json"]);
 }
 
 #[test]
@@ -108,10 +135,17 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
         &["search", &s, "--quick"],
         &["vf.json: invalid search.network.validation_fraction = 0.999: must be in (0, 0.5]"],
     );
+    let s = write(&d, "vf0.json", &patched("cartpole", r#"{"search": {"network": {"validation_fraction": 5e-324}}}"#));
+    let err = refused(
+        &d,
+        &["search", &s, "--quick", "--out", "run"],
+        &["vf0.json: invalid search.network.validation_fraction = 5e-324", "holds out no row"],
+    );
+    assert!(!err.contains("00000000000000000000"), "a 324-digit number: {err}");
     let s = write(&d, "pa.json", &patched("pendulum", r#"{"search": {"actions": "per_action"}}"#));
     refused(&d, &["search", &s], &["pa.json: invalid search.actions = per_action", "continuous"]);
     refused(&d, &["run", "pendulum", "--actions", "per-action"], &["invalid actions = per_action", "continuous"]);
-    nothing_created(&d, &["tau.json", "vf.json", "pa.json"]);
+    nothing_created(&d, &["tau.json", "vf.json", "vf0.json", "pa.json"]);
 }
 
 #[test]
@@ -168,6 +202,13 @@ fn inputs_that_are_not_regular_files_or_repeat_a_key_are_refused() {
     // A `searches/<env>.json` that is not a file is refused, not replaced by the built-in copy.
     std::fs::create_dir_all(d.join("searches/cartpole.json")).unwrap();
     refused(&d, &["search", "cartpole"], &["searches/cartpole.json: is a directory, not a file"]);
+    std::fs::create_dir_all(d.join("searches/tuned/bicycle.json")).unwrap();
+    refused(
+        &d,
+        &["compare", "bicycle", "--tuned", "thesis", "--out", "cmp"],
+        &["searches/tuned/bicycle.json: is a directory, not a file"],
+    );
+    assert!(!d.join("cmp").exists());
 }
 
 #[test]

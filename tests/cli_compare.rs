@@ -155,3 +155,125 @@ fn a_tuned_config_with_a_missing_or_invalid_field_is_refused() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("invalid.json") && err.contains("patience"), "{err}");
 }
+
+/// A one-dataset Extra-Trees iterations comparison of `iterations` FQI iterations (milliseconds).
+fn tiny_compare(dir: &Path, iterations: &str) {
+    let o = bin()
+        .args(["compare", "cartpole", "--out", dir.to_str().unwrap(), "--analysis", "iterations", "--learner", "et"])
+        .args(["--datasets", "1", "--episodes", "20", "--quiet", "--iterations", iterations])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+fn report(dir: &Path) -> (Option<i32>, String) {
+    let o = bin().arg("report").arg(dir).output().unwrap();
+    (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+fn resume(dir: &Path) -> (Option<i32>, String) {
+    let o = bin().args(["compare", "--resume", dir.to_str().unwrap(), "--quiet"]).output().unwrap();
+    (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
+
+const UNIT: &str = "units/et.fqi.base.n20.d0.json";
+
+#[test]
+fn an_edited_comparison_unit_is_refused_by_report_and_computed_again_by_resume() {
+    let dir = tmp("edited-unit");
+    tiny_compare(&dir, "2");
+    let original = read(dir.join(UNIT));
+    let mut v = json(dir.join(UNIT));
+    v["iterations"][1]["score"] = serde_json::json!(999.0);
+    std::fs::write(dir.join(UNIT), serde_json::to_string_pretty(&v).unwrap()).unwrap();
+
+    let (code, err) = report(&dir);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(UNIT) && err.contains("checksum does not match its content"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+
+    let (code, err) = resume(&dir);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains(UNIT) && err.contains("it will be computed again"), "{err}");
+    // Times differ between runs, and with them the checksum.
+    let strip = |t: &str| {
+        t.lines().filter(|l| !l.contains("_seconds") && !l.contains("checksum")).collect::<Vec<_>>().join("\n")
+    };
+    assert_eq!(strip(&read(dir.join(UNIT))), strip(&original), "recomputed as first computed");
+    assert!(!read(dir.join("scores.csv")).contains(",999"));
+    assert!(!status(&dir).contains('!'), "{}", status(&dir));
+}
+
+fn status(dir: &Path) -> String {
+    let o = bin().arg("status").arg(dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn status_lists_a_comparison_and_says_which_unit_does_not_verify() {
+    let dir = tmp("status");
+    tiny_compare(&dir, "2");
+    let line = status(&dir);
+    assert!(line.contains("cartpole") && line.contains("compared") && line.contains("units 2/2"), "{line}");
+    assert!(!line.contains('!'), "{line}");
+
+    let mut v = json(dir.join(UNIT));
+    v["iterations"][0]["score"] = serde_json::json!(5.0);
+    std::fs::write(dir.join(UNIT), v.to_string()).unwrap();
+    let line = status(&dir);
+    assert!(line.contains("units 1/2") && line.contains("1 stored unit does not verify"), "{line}");
+    assert!(line.contains(UNIT) && line.contains("checksum does not match"), "{line}");
+
+    let mut c = json(dir.join("compare.json"));
+    c["seed"] = serde_json::json!(99);
+    std::fs::write(dir.join("compare.json"), c.to_string()).unwrap();
+    let line = status(&dir);
+    assert!(line.contains("compare.json: changed since the run began"), "{line}");
+}
+
+#[test]
+fn a_unit_of_another_configuration_is_refused_by_report_and_computed_again_by_resume() {
+    let (dir, other) = (tmp("foreign-unit"), tmp("foreign-source"));
+    tiny_compare(&dir, "2");
+    tiny_compare(&other, "3");
+    std::fs::copy(other.join(UNIT), dir.join(UNIT)).unwrap();
+
+    let (code, err) = report(&dir);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(UNIT) && err.contains("computed with another configuration"), "{err}");
+
+    let (code, err) = resume(&dir);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("computed with another configuration") && err.contains("computed again"), "{err}");
+    assert_eq!(json(dir.join(UNIT))["iterations"].as_array().unwrap().len(), 2, "recomputed with K = 2");
+    assert_eq!(report(&dir).0, Some(0));
+}
+
+#[test]
+fn an_edited_compare_json_is_refused_by_resume_and_report() {
+    for (name, pointer, value) in [("seed", "/seed", serde_json::json!(7)), ("g", "/env/g", serde_json::json!(10.0))] {
+        let dir = tmp(&format!("edited-config-{name}"));
+        tiny_compare(&dir, "2");
+        let mut v = json(dir.join("compare.json"));
+        *v.pointer_mut(pointer).unwrap_or_else(|| panic!("{pointer} in compare.json")) = value;
+        std::fs::write(dir.join("compare.json"), serde_json::to_string_pretty(&v).unwrap()).unwrap();
+        for (code, err) in [resume(&dir), report(&dir)] {
+            assert_eq!(code, Some(2), "{err}");
+            assert!(err.contains("compare.json: changed since the run began"), "{name}: {err}");
+            assert_eq!(err.lines().count(), 1, "{err}");
+        }
+    }
+}
+
+#[test]
+fn a_comparison_created_before_the_hash_records_it_at_its_first_resume() {
+    let dir = tmp("old-run-json");
+    tiny_compare(&dir, "2");
+    let mut info = json(dir.join("run.json"));
+    let hash = info.as_object_mut().unwrap().remove("config_hash").expect("run.json records config_hash");
+    std::fs::write(dir.join("run.json"), info.to_string()).unwrap();
+    assert_eq!(report(&dir).0, Some(0), "an old run.json is read as before");
+    assert_eq!(resume(&dir).0, Some(0));
+    assert_eq!(json(dir.join("run.json"))["config_hash"], hash);
+}

@@ -89,6 +89,42 @@ fn damaged_directories_resume_to_the_uninterrupted_result() {
     assert!(err.contains("spec.json: changed since the run began"), "{err}");
 }
 
+fn status(dir: &Path) -> String {
+    let o = bin().arg("status").arg(dir).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn status_and_report_say_which_stored_unit_does_not_verify() {
+    let d = empty_dir("resume", "verify");
+    let dir = d.join("run");
+    let o = search(&dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!status(&dir).contains('!'), "{}", status(&dir));
+
+    let unit = std::fs::read_dir(dir.join("units")).unwrap().next().unwrap().unwrap().path();
+    let name = format!("units/{}", unit.file_name().unwrap().to_string_lossy());
+    let mut u: Value = json(&unit);
+    u["score"] = serde_json::json!(1234.5);
+    std::fs::write(&unit, u.to_string()).unwrap();
+    let line = status(&dir);
+    assert!(line.contains("1 stored unit does not verify") && line.contains(&name), "{line}");
+    assert!(line.contains("checksum does not match its content"), "{line}");
+
+    let o = bin().arg("report").arg(&dir).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(&name) && err.contains("checksum does not match") && err.contains("resume"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+
+    let mut spec: Value = json(dir.join("spec.json"));
+    spec["search"]["episodes"] = serde_json::json!(21);
+    std::fs::write(dir.join("spec.json"), spec.to_string()).unwrap();
+    let line = status(&dir);
+    assert!(line.contains("spec.json: changed since the run began"), "{line}");
+}
+
 fn unit_in(dir: &Path, like: &Path) -> PathBuf {
     dir.join("units").join(like.file_name().unwrap())
 }
@@ -217,4 +253,30 @@ fn a_budget_stops_the_validation_and_a_resume_finishes_it() {
     assert_eq!(json(dir.join("state.json"))["state"], "finished");
     assert_eq!(again["entries"], whole["entries"]);
     assert_eq!(again["note"], whole["note"]);
+}
+
+#[test]
+fn validate_names_an_unfinished_search_and_notes_a_replaced_validation() {
+    let d = empty_dir("resume", "revalidate");
+    let dir = d.join("run");
+    let o = search(&dir);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let validate = |extra: &[&str]| {
+        let o = bin().arg("validate").arg(&dir).args(["--quiet", "--top", "2"]).args(extra).output().unwrap();
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (code, err) = validate(&["--datasets", "2"]);
+    assert_eq!(code, Some(0), "{err}");
+    // Other caps replace validation.json: a note says so; the same caps again rewrite it silently.
+    let (code, err) = validate(&["--datasets", "3"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("validation.json: replaced by this validation"), "{err}");
+    let (_, err) = validate(&["--datasets", "3"]);
+    assert!(!err.contains("replaced"), "{err}");
+    // A search stopped before its first generation ended has no hall of fame yet.
+    std::fs::remove_file(dir.join("hall_of_fame.json")).unwrap();
+    let (code, err) = validate(&[]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("has no hall_of_fame.json: the search has not finished a generation yet"), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
 }

@@ -296,13 +296,12 @@ pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
 }
 
 pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
-    use crate::ga::status;
-    let dirs = status::find_runs(&a.dir);
+    let dirs = crate::runs::find(&a.dir);
     if dirs.is_empty() {
         println!("no runs under {}", a.dir.display());
     }
     for d in dirs {
-        match status::line(&d) {
+        match crate::runs::status_line(&d) {
             Ok(line) => println!("{line}"),
             // One damaged run must not hide the others.
             Err(e) => eprintln!("warning: skipped {e}"),

@@ -157,7 +157,7 @@ impl<'de> Deserialize<'de> for EnvConfig {
             "pendulum" => crate::error::tagged(rest).map(EnvConfig::Pendulum),
             "cartpole" => crate::error::tagged(rest).map(EnvConfig::Cartpole),
             "bicycle" => crate::error::tagged(rest).map(EnvConfig::Bicycle),
-            other => Err(serde::de::Error::unknown_variant(other, &NAMES)),
+            other => Err(crate::error::unknown_tag("name", other, &NAMES)),
         }
     }
 }

@@ -1,30 +1,14 @@
 //! Where each search stands (`bfqi-ga status`): its run directories found under a folder, one line
 //! each.
 
-use super::records::Phase;
+use super::records::{Phase, RunInfo};
 use super::search::RunState;
+use super::setup::load_spec;
+use super::units::{Evaluator, Role};
 use crate::error::Result;
 use crate::progress::human;
 use crate::store::{self, RunLock};
-use std::path::{Path, PathBuf};
-
-/// The run directories under `root` (those with a `state.json`), sorted; a run's own folders are
-/// not searched further.
-pub fn find_runs(root: &Path) -> Vec<PathBuf> {
-    let mut dirs = Vec::new();
-    let mut stack = vec![root.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        if d.join("state.json").is_file() {
-            dirs.push(d);
-            continue;
-        }
-        if let Ok(entries) = std::fs::read_dir(&d) {
-            stack.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
-        }
-    }
-    dirs.sort();
-    dirs
-}
+use std::path::Path;
 
 /// One line on the run in `dir`: environment, state, generation, best fitness (and its validation),
 /// best setting, the directory, and its time or progress.
@@ -80,7 +64,7 @@ pub fn line(dir: &Path) -> Result<String> {
         if own.is_empty() { String::new() } else { format!("{own}{race}{other})") }
     });
     Ok(format!(
-        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}",
+        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}{}",
         env,
         state.name(),
         st.generation,
@@ -89,6 +73,41 @@ pub fn line(dir: &Path) -> Result<String> {
         validated,
         best,
         dir.display(),
-        timing
+        timing,
+        problems(dir).iter().map(|p| format!("  ! {p}")).collect::<String>()
     ))
+}
+
+/// What of the search in `dir` does not verify: a `spec.json` changed since the run began, and
+/// stored units (search and validation) that are damaged, edited or of another spec. A result that
+/// does not verify is computed again on resume, but until then a report built from it is refused,
+/// so `status` says so rather than showing the run as sound.
+fn problems(dir: &Path) -> Vec<String> {
+    let spec = match load_spec(dir) {
+        Ok(s) => s,
+        Err(e) => return vec![e.to_string()],
+    };
+    let mut out = Vec::new();
+    let recorded = store::read_json::<RunInfo>(&dir.join("run.json")).ok().and_then(|i| i.spec_hash);
+    if let Some(h) = recorded.filter(|h| *h != spec.results_hash()) {
+        out.push(format!(
+            "{}: changed since the run began (results hash {}, run.json records {h}): resuming is refused",
+            dir.join("spec.json").display(),
+            spec.results_hash()
+        ));
+    }
+    for role in [Role::Search, Role::Validation] {
+        let bad = Evaluator::with_role(spec.clone(), dir, role).unverified();
+        if let Some((path, problem)) = bad.first() {
+            let n = bad.len();
+            out.push(format!(
+                "{n} stored unit{} do{} not verify (first {}: {problem}); resuming computes {} again",
+                if n == 1 { "" } else { "s" },
+                if n == 1 { "es" } else { "" },
+                path.display(),
+                if n == 1 { "it" } else { "them" }
+            ));
+        }
+    }
+    out
 }

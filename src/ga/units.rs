@@ -56,9 +56,7 @@ pub struct UnitResult {
 impl UnitResult {
     /// The checksum of the unit's content (its JSON with `checksum` absent).
     pub fn content_checksum(&self) -> String {
-        let bare = UnitResult { checksum: None, ..self.clone() };
-        let text = serde_json::to_string(&bare).expect("a unit serialises");
-        format!("{:016x}", crate::store::fnv1a(text.as_bytes()))
+        crate::store::json_hash(&UnitResult { checksum: None, ..self.clone() })
     }
 }
 
@@ -335,21 +333,39 @@ impl Evaluator {
     /// checksum or spec hash disagrees, or that names another unit is treated as absent (so it
     /// is computed again), with a warning the first time.
     pub fn load_unit(&self, id: &str) -> Option<UnitResult> {
+        match self.verified(id) {
+            Ok(u) => u,
+            Err(problem) => {
+                if self.warned.lock().expect("warned").insert(id.to_string()) {
+                    eprintln!("warning: {}: {problem}; it will be computed again", self.unit_path(id).display());
+                }
+                None
+            }
+        }
+    }
+
+    /// A stored unit without a warning: `Ok(None)` if there is no file, `Err` with what is wrong
+    /// if it does not parse, names another unit, or its checksum or spec hash disagrees.
+    pub fn verified(&self, id: &str) -> std::result::Result<Option<UnitResult>, String> {
         let path = self.unit_path(id);
         if !path.is_file() {
-            return None;
+            return Ok(None);
         }
-        let problem = match read_json::<UnitResult>(&path) {
-            Err(e) => format!("unreadable ({e})"),
-            Ok(u) => match self.check_unit(&u, id) {
-                None => return Some(u),
-                Some(p) => p,
-            },
-        };
-        if self.warned.lock().expect("warned").insert(id.to_string()) {
-            eprintln!("warning: {}: {problem}; it will be computed again", path.display());
+        let u = read_json::<UnitResult>(&path).map_err(|e| format!("unreadable ({e})"))?;
+        match self.check_unit(&u, id) {
+            None => Ok(Some(u)),
+            Some(p) => Err(p),
         }
-        None
+    }
+
+    /// The stored units (files of the units folder) that do not verify ([`Self::verified`]), each
+    /// with its path and what is wrong, sorted by path: what `status` reports.
+    pub fn unverified(&self) -> Vec<(PathBuf, String)> {
+        self.store
+            .ids()
+            .into_iter()
+            .filter_map(|id| self.verified(&id).err().map(|p| (self.unit_path(&id), p)))
+            .collect()
     }
 
     fn check_unit(&self, u: &UnitResult, id: &str) -> Option<String> {

@@ -155,6 +155,15 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
     rule.validate().map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
     let spec = load_spec(dir)?;
     let hall_path = dir.join("hall_of_fame.json");
+    if !hall_path.is_file() {
+        // Only "No such file" would leave the user to guess that the search is not far enough.
+        return Err(Error::File {
+            path: dir.to_path_buf(),
+            message: "has no hall_of_fame.json: the search has not finished a generation yet; resume it \
+                      (search --resume) and validate once it has"
+                .into(),
+        });
+    }
     let hall: Vec<HallEntry> = read_json(&hall_path)?;
     let best_path = dir.join("best.json");
     let mut best = TunedConfig::load(&best_path)?;
@@ -336,7 +345,15 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
         race_end,
         entries,
     };
-    write_json(&dir.join("validation.json"), &v)?;
+    let v_path = dir.join("validation.json");
+    // Validating again with other caps discards the earlier result: say so rather than silently.
+    if v_path.is_file() && read_json::<Validation>(&v_path).ok().is_none_or(|old| old.rule != v.rule) {
+        eprintln!(
+            "note: {}: replaced by this validation (the earlier one had other caps or did not parse)",
+            v_path.display()
+        );
+    }
+    write_json(&v_path, &v)?;
     if tuned != setting_id(&Decoded { activation: best.activation, delta_min: best.delta_min, patience: best.patience })
     {
         best = super::winner::tuned_for(dir, &spec, &tuned)?;

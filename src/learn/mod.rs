@@ -268,7 +268,7 @@ impl<'de> Deserialize<'de> for LearnerConfig {
         match kind.as_str() {
             "extra_trees" => crate::error::tagged(rest).map(LearnerConfig::ExtraTrees),
             "mlp" => crate::error::tagged(rest).map(LearnerConfig::Mlp),
-            other => Err(serde::de::Error::unknown_variant(other, &["extra_trees", "mlp"])),
+            other => Err(crate::error::unknown_tag("kind", other, &["extra_trees", "mlp"])),
         }
     }
 }

@@ -78,7 +78,8 @@ impl<'de> Deserialize<'de> for ClaimSpec {
             "one_balances" => tagged(rest).map(ClaimSpec::OneBalances),
             "both_balance" => tagged(rest).map(ClaimSpec::BothBalance),
             "mostly_better" => tagged(rest).map(ClaimSpec::MostlyBetter),
-            other => Err(serde::de::Error::unknown_variant(
+            other => Err(crate::error::unknown_tag(
+                "rule",
                 other,
                 &["simpler_model", "similar_complexity", "one_balances", "both_balance", "mostly_better"],
             )),

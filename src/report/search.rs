@@ -69,13 +69,19 @@ fn costs(dir: &Path, spec: &Spec, records: &[GenerationRecord]) -> Result<Vec<Co
         for ind in &r.individuals {
             for (d, recorded) in ind.scores.iter().enumerate() {
                 let id = unit_id(&ind.decoded, d);
-                let unit = ev.load_unit(&id).ok_or_else(|| Error::File {
+                let refuse = |what: String| Error::File {
                     path: ev.unit_path(&id),
                     message: format!(
-                        "missing or unreadable, but generations.jsonl scores generation {} individual {} with it",
+                        "{what}, but generations.jsonl scores generation {} individual {} with it: resume the \
+                         search to compute it again",
                         r.generation, ind.index
                     ),
-                })?;
+                };
+                let unit = match ev.verified(&id) {
+                    Ok(Some(u)) => u,
+                    Ok(None) => return Err(refuse("missing".into())),
+                    Err(problem) => return Err(refuse(problem)),
+                };
                 if unit.score.map(f64::to_bits) != recorded.map(f64::to_bits) {
                     return Err(Error::File {
                         path: dir.join("generations.jsonl"),

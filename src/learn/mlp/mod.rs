@@ -119,7 +119,7 @@ impl MlpParams {
         if split == 0 || split >= n {
             return Err(Error::Data(format!(
                 "{n} rows with validation_fraction {} leave {split} training and {} validation rows; both need ≥ 1",
-                self.validation_fraction,
+                crate::error::short_number(self.validation_fraction.to_string()),
                 n - split.min(n)
             )));
         }

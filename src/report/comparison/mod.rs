@@ -75,7 +75,6 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
 
 /// Rebuilds every table, plot and `report.md` of the comparison in `dir` from its stored units.
 pub fn regenerate(dir: &Path) -> Result<Outputs> {
-    let cfg = crate::compare::load(dir)?;
-    let units = crate::compare::collect(dir, &cfg)?;
+    let (cfg, units) = crate::compare::collect(dir)?;
     write(dir, &cfg, &units)
 }
