@@ -3,7 +3,7 @@
 //! while requests arrive.
 
 mod common;
-use common::{Http, TempDir, bin, copy_dir, empty_dir, http_get, http_request, read, tiny_with};
+use common::{Http, TempDir, bin, copy_dir, empty_dir, http_get, http_request, read, settings, tiny_with};
 
 use bfqi_ga::dashboard::{Dashboard, Options};
 use serde_json::Value;
@@ -73,22 +73,6 @@ fn committed() -> PathBuf {
 fn tiny_search(dir: &Path) {
     let o = bin().args(["search", "cartpole", "--out"]).arg(dir).args(tiny_with(&[])).output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-}
-
-/// The distinct settings a search's records name.
-fn settings(dir: &Path) -> BTreeSet<String> {
-    read(dir.join("generations.jsonl"))
-        .lines()
-        .flat_map(|l| {
-            let g: Value = serde_json::from_str(l).unwrap();
-            g["individuals"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|i| i["setting"].as_str().unwrap().to_string())
-                .collect::<Vec<_>>()
-        })
-        .collect()
 }
 
 fn rows(table: &Value) -> usize {

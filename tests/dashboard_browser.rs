@@ -4,10 +4,9 @@
 //! as text, and saves screenshots. Skipped, saying why, only where Chromium cannot start.
 
 mod common;
-use common::{bin, copy_dir, empty_dir, read, tiny_with};
+use common::{bin, copy_dir, empty_dir, settings, tiny_with};
 
 use serde_json::{Value, json};
-use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -184,21 +183,6 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-fn settings(dir: &Path) -> BTreeSet<String> {
-    read(dir.join("generations.jsonl"))
-        .lines()
-        .flat_map(|l| {
-            let g: Value = serde_json::from_str(l).unwrap();
-            g["individuals"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .map(|i| i["setting"].as_str().unwrap().to_string())
-                .collect::<Vec<_>>()
-        })
-        .collect()
 }
 
 fn screenshots() -> PathBuf {

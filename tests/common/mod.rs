@@ -198,3 +198,19 @@ fn dechunk(mut s: &[u8]) -> Vec<u8> {
 pub fn http_get(base: &str, path: &str) -> Http {
     http_request(base, "GET", path)
 }
+
+/// The distinct settings a search's records name.
+pub fn settings(dir: &Path) -> std::collections::BTreeSet<String> {
+    read(dir.join("generations.jsonl"))
+        .lines()
+        .flat_map(|l| {
+            let g: Value = serde_json::from_str(l).unwrap();
+            g["individuals"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|i| i["setting"].as_str().unwrap().to_string())
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
