@@ -17,11 +17,15 @@ fn main() {
         _ => "unknown".to_string(),
     };
     println!("cargo:rustc-env=BFQI_GA_COMMIT={commit}");
-    // Re-run when HEAD moves or the index changes (a commit, a checkout, staged edits).
-    for p in [".git/HEAD", ".git/index"] {
-        println!("cargo:rerun-if-changed={p}");
-    }
+    // Re-run when HEAD moves or the index changes (a commit, a checkout, staged edits). Paths
+    // come from git itself, so a worktree (where `.git` is a file) watches its own HEAD and index
+    // instead of rebuilding on every cargo call.
+    let mut watch = vec!["HEAD".to_string(), "index".to_string()];
     if let Some(r) = git(&["symbolic-ref", "-q", "HEAD"]) {
-        println!("cargo:rerun-if-changed=.git/{r}");
+        watch.push(r);
+    }
+    for name in watch {
+        let path = git(&["rev-parse", "--git-path", &name]).unwrap_or_else(|| format!(".git/{name}"));
+        println!("cargo:rerun-if-changed={path}");
     }
 }
