@@ -93,10 +93,14 @@ pub fn worker(dir: &Path, folder: &str, id: &str) -> Result<()> {
         });
     }
     let units = units(dir, folder)?;
+    // One line per task in its log, so a unit computed by two tasks would be seen there.
     if units.stored(id) {
+        println!("{folder}/{id}: already stored, nothing to do");
         return Ok(());
     }
-    units.compute(id)
+    units.compute(id)?;
+    println!("{folder}/{id}: computed and stored");
+    Ok(())
 }
 
 /// Validates the winner of the search in `dir` ([`validate::run`]) when no search is running: the

@@ -11,8 +11,12 @@ fn tmp(name: &str) -> TempDir {
     empty_dir("slurm", name)
 }
 
+fn support(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support").join(name).display().to_string()
+}
+
 fn fake() -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/support/fake-sbatch.sh").display().to_string()
+    support("fake-sbatch.sh")
 }
 
 /// The tiny search, seed 3.
@@ -22,7 +26,79 @@ fn search(out: &Path, extra: &[&str], env: &[(&str, String)]) -> Output {
     for (k, v) in env {
         c.env(k, v);
     }
+    if env.iter().any(|(k, _)| *k == "BFQI_SBATCH") {
+        c.env("BFQI_SQUEUE", support("fake-squeue.sh"));
+    }
     c.output().unwrap()
+}
+
+/// Every task log of a Slurm run directory, concatenated.
+fn task_logs(run: &Path) -> String {
+    std::fs::read_dir(run.join("slurm/logs")).unwrap().flatten().map(|e| read(e.path())).collect()
+}
+
+/// How many units of `run` its tasks' logs say were computed, and the most times any one was.
+fn computed(run: &Path) -> (usize, usize) {
+    let mut seen = std::collections::HashMap::<String, usize>::new();
+    for line in task_logs(run).lines() {
+        if let Some(id) = line.strip_suffix(": computed and stored") {
+            *seen.entry(id.to_string()).or_default() += 1;
+        }
+    }
+    (seen.len(), seen.values().copied().max().unwrap_or(0))
+}
+
+#[test]
+fn an_unreachable_controller_is_waited_for_at_submission() {
+    let d = tmp("unreachable");
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    assert!(search(&local, &[], &[]).status.success());
+    let state = d.join("state").display().to_string();
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_UNREACHABLE", "2".into()), ("FAKE_SBATCH_STATE", state)];
+    let o = search(&slurm, &["--executor", "slurm"], &env);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("slurm: submission failed (sbatch: error: Batch job submission failed").count(), 2, "{err}");
+    assert!(!err.contains("resubmitting"), "a failed submission is not a lost task: {err}");
+    for f in ["generations.jsonl", "best.json", "validation.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
+    }
+    // A controller that stays away: one line, exit 1 (a failed run, resumable), no state lost.
+    let state = d.join("state2").display().to_string();
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_UNREACHABLE", "100".into()), ("FAKE_SBATCH_STATE", state)];
+    let o = search(&d.join("away"), &["--executor", "slurm", "--slurm-controller-wait", "1"], &env);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let last = err.lines().last().unwrap_or_default();
+    assert!(
+        last.contains("sbatch could not submit for") && last.contains("Unable to contact slurm controller"),
+        "{err}"
+    );
+    assert!(last.contains("resume when the cluster accepts jobs again"), "{err}");
+}
+
+#[test]
+fn a_task_still_running_when_sbatch_returns_is_waited_for_not_resubmitted() {
+    let d = tmp("detached");
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    assert!(search(&local, &[], &[]).status.success());
+    let state = d.join("state").display().to_string();
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_DETACH_ONCE", "0".into()), ("FAKE_SBATCH_STATE", state)];
+    let o = search(&slurm, &["--executor", "slurm"], &env);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("resubmitting"), "{err}");
+    let retried = std::fs::read_dir(slurm.join("slurm"))
+        .unwrap()
+        .flatten()
+        .any(|e| e.file_name().to_string_lossy().contains("-try1"));
+    assert!(!retried, "a unit whose task still ran was resubmitted");
+    for f in ["generations.jsonl", "best.json", "validation.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
+    }
+    let stored = std::fs::read_dir(slurm.join("units")).unwrap().count()
+        + std::fs::read_dir(slurm.join("validation")).unwrap().count();
+    assert_eq!(computed(&slurm), (stored, 1), "each unit computed by exactly one task");
 }
 
 #[test]
@@ -55,6 +131,8 @@ fn slurm_driver_matches_local_and_resubmits_a_lost_task() {
         .filter(|e| e.as_ref().unwrap().file_name().to_string_lossy().starts_with("units-"))
         .count();
     assert!(lists >= 3, "expected a resubmission, saw {lists} arrays");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("slurm: 1 unit(s) missing after submission 1 (") && err.contains("resubmitting"), "{err}");
 }
 
 #[test]

@@ -99,6 +99,10 @@ pub struct Options {
     /// Resubmissions of missing units before giving up.
     #[arg(long, default_value_t = 2, help_heading = "Executor")]
     pub slurm_retries: usize,
+    /// Seconds to wait for an unreachable Slurm controller (submissions are retried, and no unit is
+    /// resubmitted while its array may still run) before stopping with a message.
+    #[arg(long, default_value_t = 600, value_parser = clap::value_parser!(u64).range(1..=604_800), help_heading = "Executor")]
+    pub slurm_controller_wait: u64,
 }
 
 impl Options {
@@ -114,6 +118,7 @@ impl Options {
         s.max_parallel = self.slurm_max_parallel;
         s.extra = self.slurm_arg.clone();
         s.retries = self.slurm_retries;
+        s.controller_wait = std::time::Duration::from_secs(self.slurm_controller_wait);
         Ok(Box::new(s))
     }
 }

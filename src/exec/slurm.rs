@@ -13,6 +13,7 @@ use crate::run_dir::{Budget, Stop, UnitStore, Units};
 use crate::store::{self, write_atomic};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::{Duration, Instant};
 
 /// Settings of the Slurm executor.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,6 +36,11 @@ pub struct Slurm {
     pub binary: PathBuf,
     /// The `sbatch` command.
     pub sbatch: String,
+    /// The `squeue` command, asked whether an array still has tasks before any is resubmitted.
+    pub squeue: String,
+    /// How long an unreachable controller is waited for (submission retries, and the check that an
+    /// array has no task left) before the run stops with a message.
+    pub controller_wait: Duration,
 }
 
 impl Slurm {
@@ -52,6 +58,8 @@ impl Slurm {
             retries: 2,
             binary,
             sbatch: std::env::var("BFQI_SBATCH").unwrap_or_else(|_| "sbatch".into()),
+            squeue: std::env::var("BFQI_SQUEUE").unwrap_or_else(|_| "squeue".into()),
+            controller_wait: Duration::from_secs(600),
         })
     }
 
@@ -99,13 +107,90 @@ impl Slurm {
             cmd.arg(format!("--cpus-per-task={c}"));
         }
         cmd.args(&self.extra).arg(&script);
-        // The array's exit status is not trusted either way: the result files decide.
-        let out = cmd.output().map_err(|e| Error::io(&self.sbatch, e))?;
-        let stdout = String::from_utf8_lossy(&out.stdout);
-        let job = stdout.split_whitespace().last().unwrap_or("JOBID").to_string();
+        let (job, stderr) = self.submit_waiting(&mut cmd)?;
+        // `sbatch --wait` can return while tasks still run (it lost the controller, or was killed):
+        // resubmitting their units then would compute them twice, so wait until none is left.
+        self.wait_gone(&job)?;
         let paths = (0..ids.len()).map(|k| logs.join(format!("{job}_{k}.out"))).collect();
-        Ok((paths, String::from_utf8_lossy(&out.stderr).trim().to_string()))
+        Ok((paths, stderr))
     }
+
+    /// Runs `sbatch --wait`, retrying while the submission itself fails (no job id printed: the
+    /// controller is unreachable or refuses jobs for now), for at most [`Slurm::controller_wait`].
+    /// Returns the job id and what sbatch said on stderr.
+    fn submit_waiting(&self, cmd: &mut Command) -> Result<(String, String)> {
+        let start = Instant::now();
+        let mut pause = Duration::from_secs(2);
+        loop {
+            // The array's exit status is not trusted either way: the result files decide.
+            let out = cmd.output().map_err(|e| Error::io(&self.sbatch, e))?;
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            let stderr = String::from_utf8_lossy(&out.stderr).trim().to_string();
+            if let Some(job) = job_id(&stdout) {
+                return Ok((job, stderr));
+            }
+            if start.elapsed() >= self.controller_wait {
+                return Err(Error::Failed(format!(
+                    "{}: sbatch could not submit for {} s: {}; resume when the cluster accepts jobs again",
+                    self.run_dir.display(),
+                    start.elapsed().as_secs(),
+                    first_line(&stderr)
+                )));
+            }
+            eprintln!("slurm: submission failed ({}); retrying in {} s", first_line(&stderr), pause.as_secs());
+            std::thread::sleep(pause);
+            pause = (pause * 2).min(Duration::from_secs(30));
+        }
+    }
+
+    /// Waits until `squeue` lists no task of `job`, for at most [`Slurm::controller_wait`] while
+    /// the controller does not answer. No squeue on this machine: nothing to ask, nothing waited.
+    fn wait_gone(&self, job: &str) -> Result<()> {
+        let start = Instant::now();
+        let mut said = String::new();
+        while start.elapsed() < self.controller_wait {
+            let out = match Command::new(&self.squeue).args(["-h", "-j", job, "-o", "%T"]).output() {
+                Ok(out) => out,
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+                Err(e) => return Err(Error::io(&self.squeue, e)),
+            };
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            if out.status.success() {
+                let listed = String::from_utf8_lossy(&out.stdout);
+                // Finished tasks linger as COMPLETED/FAILED/CANCELLED for a while: only live ones count.
+                if !listed.lines().any(|t| LIVE.contains(&t.trim())) {
+                    return Ok(());
+                }
+            } else if stderr.contains("Invalid job id") {
+                return Ok(()); // already purged from the controller's memory: long over
+            } else {
+                said = first_line(&stderr).to_string();
+            }
+            std::thread::sleep(Duration::from_secs(2));
+        }
+        Err(Error::Failed(format!(
+            "{}: Slurm job {job} still has tasks (or the controller does not answer{}) after {} s; resume once it has ended",
+            self.run_dir.display(),
+            if said.is_empty() { String::new() } else { format!(": {said}") },
+            start.elapsed().as_secs()
+        )))
+    }
+}
+
+/// Task states in which a task may still write its unit.
+const LIVE: [&str; 9] =
+    ["PENDING", "RUNNING", "CONFIGURING", "COMPLETING", "SUSPENDED", "REQUEUED", "RESIZING", "SIGNALING", "STAGE_OUT"];
+
+/// The job id in sbatch's "Submitted batch job N".
+fn job_id(stdout: &str) -> Option<String> {
+    let rest = stdout.lines().find_map(|l| l.trim().strip_prefix("Submitted batch job "))?;
+    let id = rest.split_whitespace().next()?;
+    id.chars().all(|c| c.is_ascii_digit()).then(|| id.to_string())
+}
+
+fn first_line(s: &str) -> &str {
+    let line = s.lines().find(|l| !l.trim().is_empty()).unwrap_or("no message");
+    line.trim()
 }
 
 use std::io::Write as _;
@@ -146,6 +231,17 @@ impl Executor for Slurm {
                 }
                 !there
             });
+            if !missing.is_empty() && attempt < self.retries {
+                // Said, so a lost task (a node that died, a cancelled or killed task) is noticed.
+                let first: Vec<&str> = missing.iter().take(3).map(String::as_str).collect();
+                eprintln!(
+                    "slurm: {} unit(s) missing after submission {} ({}{}); resubmitting",
+                    missing.len(),
+                    attempt + 1,
+                    first.join(", "),
+                    if missing.len() > 3 { ", …" } else { "" }
+                );
+            }
         }
         if missing.is_empty() {
             return Ok(None);
