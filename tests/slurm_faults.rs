@@ -125,10 +125,10 @@ impl Cluster {
                         let pattern = format!("bfqi-ga worker {}", run.display());
                         let out = cmd("pgrep", &["-f", &pattern]);
                         let pids = String::from_utf8_lossy(&out.stdout);
-                        if let Some(pid) = pids.split_whitespace().next() {
-                            if cmd("kill", &["-KILL", pid]).status.success() {
-                                return true;
-                            }
+                        if let Some(pid) = pids.split_whitespace().next()
+                            && cmd("kill", &["-KILL", pid]).status.success()
+                        {
+                            return true;
                         }
                     }
                     Fault::SlurmdRestart => {
