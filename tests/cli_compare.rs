@@ -70,6 +70,14 @@ fn small_compare_writes_every_file_and_threads_do_not_matter() {
             .collect()
     };
     assert_eq!(strip(&csv), strip(&read(b.join("scores.csv"))), "1 vs 2 threads");
+    // Timings are durations: with per-action models fitted on 2 threads at once, the prediction
+    // seconds once summed past the wall time and left a negative fit time.
+    for l in read(b.join("scores.csv")).lines().skip(1) {
+        let cols: Vec<&str> = l.split(',').collect();
+        for c in &cols[10..=12] {
+            assert!(c.parse::<f64>().is_ok_and(|t| t >= 0.0), "negative or missing timing in {l}");
+        }
+    }
     assert_eq!(read(a.join("summary.csv")), read(b.join("summary.csv")));
 
     let report = read(a.join("report.md"));

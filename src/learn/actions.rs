@@ -15,6 +15,7 @@ use crate::rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use std::time::Instant;
 
 /// How actions reach the learner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -198,9 +199,11 @@ impl Encoded {
                 let (na, n) = (self.actions.len(), self.n);
                 // The actions' models are independent (each has its own rows and seed), so they are
                 // fitted in parallel: idle threads take some, results do not depend on which.
+                let wall = Instant::now();
                 let fits: Vec<_> = (0..na)
                     .into_par_iter()
                     .map(|j| {
+                        let busy = Instant::now();
                         let (lo, hi) = (self.train_offsets[j], self.train_offsets[j + 1]);
                         let ys: Vec<f64> = self.train_index[lo..hi].iter().map(|&i| y[i]).collect();
                         let (mut buf, mut next_buf) = (vec![0.0; hi - lo], vec![0.0; n]);
@@ -215,19 +218,25 @@ impl Encoded {
                             &next,
                             &mut next_buf,
                         )?;
-                        Ok((m, fi, s, buf, next_buf))
+                        Ok((m, fi, s, busy.elapsed().as_secs_f64(), buf, next_buf))
                     })
                     .collect::<Result<_>>()?;
+                let wall = wall.elapsed().as_secs_f64();
                 let mut models = Vec::with_capacity(na);
                 let mut infos = Vec::with_capacity(na);
-                let mut seconds = 0.0;
-                for (j, (m, fi, s, buf, next_buf)) in fits.into_iter().enumerate() {
+                let (mut next_busy, mut busy) = (0.0, 0.0);
+                for (j, (m, fi, s, b, buf, next_buf)) in fits.into_iter().enumerate() {
                     self.put_action_rows(j, &buf, out);
                     self.put_action_column(j, &next_buf, out_next);
-                    seconds += s;
+                    next_busy += s;
+                    busy += b;
                     infos.push(fi);
                     models.push(m);
                 }
+                // The actions ran on several threads at once: summed, their prediction seconds can
+                // exceed the wall time (and the caller's fit time, wall minus this, went negative).
+                // Report the prediction's share of the threads' busy time, as wall seconds.
+                let seconds = if busy > 0.0 { wall * (next_busy / busy).min(1.0) } else { 0.0 };
                 Ok((QModel::PerAction(models), infos, seconds))
             }
         }
