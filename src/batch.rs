@@ -28,6 +28,10 @@ pub struct SearchJob {
     pub search: String,
     /// Presets to overlay, in order.
     pub presets: Vec<String>,
+    /// A finished, validated search of the same spec at full size (e.g. `results/searches/bicycle`)
+    /// whose validated winner this job's is checked against in the summary.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<String>,
     /// Overrides of the spec, as `search`'s flags.
     #[serde(flatten)]
     pub overrides: SearchOverrides,
@@ -54,9 +58,11 @@ impl<'de> Deserialize<'de> for SearchJob {
             search: String,
             #[serde(default)]
             presets: Vec<String>,
+            #[serde(default)]
+            reference: Option<String>,
         }
-        let (own, overrides): (Own, _) = split(d, &["name", "search", "presets"])?;
-        Ok(SearchJob { name: own.name, search: own.search, presets: own.presets, overrides })
+        let (own, overrides): (Own, _) = split(d, &["name", "search", "presets", "reference"])?;
+        Ok(SearchJob { name: own.name, search: own.search, presets: own.presets, reference: own.reference, overrides })
     }
 }
 
@@ -92,7 +98,12 @@ where
 pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
     for (i, job) in plan.jobs.iter().enumerate() {
         let checked = match job {
-            Job::Search(s) => search::resolve(&s.search, &s.presets, &s.overrides).map(|_| ()),
+            Job::Search(s) => {
+                search::resolve(&s.search, &s.presets, &s.overrides).and_then(|spec| match &s.reference {
+                    Some(r) => crate::report::batch::check_reference(&spec.0, Path::new(r)),
+                    None => Ok(()),
+                })
+            }
             Job::Compare(c) => {
                 let mut r = c.request.clone();
                 if r.tuned.starts_with("from:") {
@@ -385,12 +396,12 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
             }
         }
         write_json(&dir.join("batch.json"), &states)?;
-        write_summary(dir, &states)?;
+        write_summary(dir, &plan, &states)?;
         if stopped.is_some() {
             break;
         }
     }
-    write_summary(dir, &states)?;
+    write_summary(dir, &plan, &states)?;
     let failed = states.iter().filter(|s| s.state == JobPhase::Failed).count();
     Ok(match stopped {
         Some(stop) => Ending::Stopped(stop),
@@ -399,7 +410,29 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
     })
 }
 
-fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
+/// Rebuilds a batch directory's reports from its records: every job's report (a search's
+/// report.md and fitness plot, a comparison's report and figures), then summary.md, whose times
+/// are the ones batch.json recorded. Returns how many job reports were written.
+pub fn report(dir: &Path) -> Result<usize> {
+    let plan_path = dir.join("plan.json");
+    let plan = Plan::parse(&store::read_input(&plan_path)?, &plan_path)?;
+    let states: Vec<JobState> = read_json(&dir.join("batch.json"))?;
+    let mut written = 0;
+    for s in &states {
+        let job_dir = dir.join(&s.dir);
+        if job_dir.join("compare.json").is_file() && s.state == JobPhase::Finished {
+            crate::report::comparison::regenerate(&job_dir)?;
+            written += 1;
+        } else if job_dir.join("generations.jsonl").is_file() {
+            crate::report::search::write(&job_dir)?;
+            written += 1;
+        }
+    }
+    write_summary(dir, &plan, &states)?;
+    Ok(written)
+}
+
+fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     let mut md = String::from(
         "# Batch summary\n\n| job | kind | state | time | result | details |\n|---|---|---|---|---|---|\n",
     );
@@ -421,6 +454,24 @@ fn write_summary(dir: &Path, states: &[JobState]) -> Result<()> {
             s.result.replace('|', "/"),
             details
         ));
+    }
+    let total: f64 = states.iter().map(|s| s.seconds).sum();
+    md.push_str(&format!(
+        "| **total** | | | **{}** ({:.2} h) | | |\n\n`time`: each job's wall time over all invocations, as batch.json recorded it.\n",
+        crate::progress::human(total),
+        total / 3600.0
+    ));
+    let checks: Vec<(String, String, String)> = plan
+        .jobs
+        .iter()
+        .zip(states)
+        .filter_map(|(j, s)| match j {
+            Job::Search(SearchJob { reference: Some(r), .. }) => Some((s.name.clone(), s.dir.clone(), r.clone())),
+            _ => None,
+        })
+        .collect();
+    if !checks.is_empty() {
+        md.push_str(&crate::report::batch::reference_section(dir, &checks));
     }
     write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))
 }

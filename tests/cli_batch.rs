@@ -1,7 +1,7 @@
 //! `bfqi-ga batch` end to end: failing jobs, budget stop and resume, malformed plans.
 
 mod common;
-use common::{TempDir, bin, empty_dir, json, read};
+use common::{TempDir, bin, empty_dir, json, read, tiny_with};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -86,4 +86,72 @@ fn the_shipped_overnight_plan_is_valid() {
     let text = read("searches/batches/overnight.json");
     let plan = bfqi_ga::batch::Plan::parse(&text, Path::new("overnight.json")).unwrap();
     assert_eq!(plan.jobs.len(), 6);
+}
+
+#[test]
+fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary() {
+    let d = tmp("reference");
+    // The reference: the same spec (env, seed, episodes, iterations, network) with a larger
+    // population, validated as every search is.
+    let full = d.join("full");
+    let o = bin()
+        .args(["search", "cartpole"])
+        .args(tiny_with(&["--seed", "4", "--population", "6"]))
+        .arg("--out")
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let job = SEARCH.replace("\"seed\": 4}", &format!("\"seed\": 4, \"reference\": \"{}\"}}", full.display()));
+    let p = plan(&d, &[&job]);
+    let out = d.join("b");
+    let o = batch(&[p.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = read(out.join("summary.md"));
+    assert!(summary.contains("## Against the full-size searches"), "{summary}");
+    assert!(summary.contains("| **total** |"), "{summary}");
+    let row = summary.lines().find(|l| l.starts_with("| s | `")).unwrap_or_else(|| panic!("{summary}"));
+
+    // The row, recomputed from the two validation.json files.
+    let winner = |v: &serde_json::Value| -> serde_json::Value {
+        let name = v["best_validated"].as_str().unwrap_or_else(|| v["tuned"].as_str().unwrap()).to_string();
+        v["entries"].as_array().unwrap().iter().find(|e| e["setting"] == name.as_str()).unwrap().clone()
+    };
+    let (mine, theirs) = (winner(&json(out.join("s/validation.json"))), winner(&json(full.join("validation.json"))));
+    let n = theirs["validation_scores"].as_array().unwrap().len();
+    let scores: Vec<f64> =
+        mine["validation_scores"].as_array().unwrap()[..n].iter().map(|x| x.as_f64().unwrap()).collect();
+    let mean = scores.iter().sum::<f64>() / n as f64;
+    let (rm, rc) = (theirs["validation"]["mean"].as_f64().unwrap(), theirs["validation"]["ci95"].as_f64().unwrap());
+    let verdict = if mean > rm + rc {
+        "above"
+    } else if mean >= rm - rc {
+        "within"
+    } else {
+        "below"
+    };
+    assert!(row.contains(&format!("{mean:.3} ({n} datasets)")), "{row}");
+    assert!(row.contains(&format!("{rm:.3} ± {rc:.3}")) && row.contains(&format!("| {verdict} |")), "{row}");
+    assert!(
+        row.contains(mine["setting"].as_str().unwrap()) && row.contains(theirs["setting"].as_str().unwrap()),
+        "{row}"
+    );
+
+    // `report` rebuilds the summary and the job's report from the records alone.
+    for f in ["summary.md", "s/report.md", "s/fitness.png"] {
+        std::fs::remove_file(out.join(f)).unwrap();
+    }
+    let o = bin().arg("report").arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(read(out.join("summary.md")), summary);
+    assert!(out.join("s/report.md").is_file() && out.join("s/fitness.png").is_file());
+
+    // A reference of other validation datasets (another master seed) is refused with the plan.
+    let other = job.replace("\"seed\": 4", "\"seed\": 5");
+    let p = plan(&d, &[&other]);
+    let o = batch(&[p.to_str().unwrap(), "--out", d.join("b2").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("job 1 (s)") && err.contains("field reference") && err.contains("its seed differs"), "{err}");
+    assert!(!d.join("b2").exists(), "a refused plan created its batch directory");
 }

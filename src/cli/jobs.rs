@@ -153,7 +153,7 @@ pub struct StatusArgs {
 /// `bfqi-ga report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
-    /// A comparison or search run directory.
+    /// A comparison, search or batch run directory.
     pub dir: PathBuf,
 }
 
@@ -311,6 +311,11 @@ pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
 }
 
 pub(super) fn report(a: ReportArgs) -> Result<Outcome> {
+    if a.dir.join("batch.json").is_file() {
+        let n = crate::batch::report(&a.dir)?;
+        eprintln!("wrote {n} job reports and summary.md into {}", a.dir.display());
+        return Ok(Outcome::Success);
+    }
     match crate::runs::kind(&a.dir)? {
         RunKind::Compare => {
             let out = crate::report::comparison::regenerate(&a.dir)?;

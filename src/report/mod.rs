@@ -1,6 +1,7 @@
 //! Reports: statistics over datasets, tables, plots and markdown.
 
 pub mod baseline;
+pub mod batch;
 pub mod claims;
 pub mod comparison;
 pub mod plot;
