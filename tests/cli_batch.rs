@@ -155,3 +155,17 @@ fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary
     assert!(err.contains("job 1 (s)") && err.contains("field reference") && err.contains("its seed differs"), "{err}");
     assert!(!d.join("b2").exists(), "a refused plan created its batch directory");
 }
+
+#[test]
+fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
+    // Every search job names its full-size reference, and `check` holds each to the same env,
+    // seed, episodes, iterations and network: the night preset changes only the GA's budget.
+    let path = Path::new("searches/batches/one-night.json");
+    let plan = bfqi_ga::batch::Plan::parse(&read(path), path).unwrap();
+    assert_eq!(plan.jobs.len(), 6);
+    bfqi_ga::batch::check(&plan, path).unwrap();
+    let text = read(path);
+    for env in ["cartpole", "bicycle", "pendulum"] {
+        assert!(text.contains(&format!("\"reference\": \"results/searches/{env}\"")), "{env} has no reference");
+    }
+}
