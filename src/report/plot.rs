@@ -237,7 +237,7 @@ pub struct FitnessRow {
 /// the finite fitnesses). Below, the best so far alone on its own scale, since its gains are tiny
 /// beside the population's spread. Both show `reference` (a known config's fitness under this
 /// search's fitness, e.g. the thesis optimum) as a flat line.
-pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&str, f64)>) -> Result<()> {
+pub fn fitness(dir: &Path, title: &str, rows: &[FitnessRow], reference: Option<(&str, f64)>) -> Result<()> {
     let pick = |f: fn(&FitnessRow) -> Option<f64>| -> Vec<(f64, f64)> {
         rows.iter().filter_map(|r| f(r).map(|v| (r.generation as f64, v))).collect()
     };
@@ -278,7 +278,6 @@ pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&s
         Some((label, f)) if !reference_near => format!("best so far, zoomed ({label}, {f:.2}, off this scale)"),
         _ => "best so far, zoomed".to_string(),
     };
-    let title = format!("GA fitness — {env}");
     let y = "fitness (mean score)";
     const TALL: (u32, u32) = (SIZE.0, SIZE.1 + 300);
     let split = SIZE.1 as i32 - 40;
@@ -287,12 +286,12 @@ pub fn fitness(dir: &Path, env: &str, rows: &[FitnessRow], reference: Option<(&s
         TALL,
         &|a| {
             let (top, bottom) = a.split_vertically(split);
-            draw_lines(&top, &title, "generation", y, &series, false)?;
+            draw_lines(&top, title, "generation", y, &series, false)?;
             draw_lines(&bottom, &zoom_title, "generation", y, &zoom, false)
         },
         &|a| {
             let (top, bottom) = a.split_vertically(split);
-            draw_lines(&top, &title, "generation", y, &series, false)?;
+            draw_lines(&top, title, "generation", y, &series, false)?;
             draw_lines(&bottom, &zoom_title, "generation", y, &zoom, false)
         },
     )

@@ -50,7 +50,11 @@ pub fn write_fitness(dir: &Path, spec: &Spec, records: &[GenerationRecord]) -> R
     write_atomic(&dir.join("fitness.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
     let env = spec.env.env().name();
     let reference = validate::load(dir).and_then(|v| v.thesis_fitness(env));
-    super::plot::fitness(dir, env, &rows, reference.map(|f| ("thesis optimum", f)))
+    let title = match spec.search.strategy {
+        Strategy::Ga => format!("GA fitness — {env}"),
+        Strategy::Random => format!("Random-search fitness — {env}"),
+    };
+    super::plot::fitness(dir, &title, &rows, reference.map(|f| ("thesis optimum", f)))
 }
 
 /// What each generation cost: units no earlier generation had, and their epochs. Also checks every
@@ -185,8 +189,17 @@ pub fn write(dir: &Path) -> Result<usize> {
         if pruning { " | pruned" } else { "" },
         if pruning { "---|" } else { "" }
     ));
-    let wall =
-        |g: usize| state.as_ref().and_then(|st| st.generation_seconds.get(g)).map_or("—".to_string(), |s| human(*s));
+    // A generation computed entirely by the run whose units this one took (`--units-from`) has no
+    // wall time of its own: say so instead of "0 s".
+    let info: Option<crate::ga::records::RunInfo> = read_json(&dir.join("run.json")).ok();
+    let taken = info.as_ref().and_then(|i| i.units_from.first()).map(|u| u.dir.clone());
+    let wall = |g: usize| match state.as_ref().and_then(|st| st.generation_seconds.get(g)) {
+        Some(s) if *s < 0.5 && taken.is_some() && costs.get(g).is_some_and(|c| c.new_units > 0) => {
+            format!("0 s (units taken from `{}`)", taken.as_deref().unwrap_or_default())
+        }
+        Some(s) => human(*s),
+        None => "—".to_string(),
+    };
     for (r, c) in records.iter().zip(&costs) {
         md.push_str(&format!(
             "| {} | {} | {:.2} M | {} | {} | {} | {} | {}{} | {} | {} |\n",
