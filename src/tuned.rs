@@ -122,6 +122,13 @@ impl TunedConfig {
                 )?;
             }
         }
+        // A network that could not hold out a validation row of its own search's datasets was
+        // never trained; a comparison would fail at its first fit.
+        let horizon = match &self.spec {
+            Some(s) => s.env.env().horizon(),
+            None => crate::env::EnvConfig::by_name(&self.env)?.env().horizon(),
+        };
+        crate::spec::holdout(&self.network, self.episodes, horizon, "episodes").map_err(|e| e.within("network"))?;
         Ok(())
     }
 

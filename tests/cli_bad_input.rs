@@ -296,6 +296,60 @@ fn a_dataset_too_small_for_the_network_names_the_episode_count() {
             "run",
             "--quiet",
         ],
-        &["invalid search.episodes = 1: too few for search dataset"],
+        &["invalid search.episodes = 1: must be ≥ 2", "search dataset 2 has 0 transition(s) of action 0"],
     );
+    assert!(!d.join("run").exists(), "refused at validation, before the run directory");
+}
+
+#[test]
+fn too_few_episodes_from_a_preset_are_refused_at_validation_naming_the_preset() {
+    let d = empty_dir("bad", "preset-episodes");
+    let p = write(&d, "few.json", r#"{"search": {"episodes": 1}}"#);
+    let args = ["search", "cartpole", "--quick", "--preset", &p, "--population", "2", "--generations", "1"];
+    let err = refused(
+        &d,
+        &[&args[..], &["--out", "run", "--quiet"]].concat(),
+        &[
+            "few.json: invalid search.episodes = 1: must be ≥ 2: with 1, search dataset 2 has 0 transition(s) of action 0",
+        ],
+    );
+    assert!(err.contains("(applied to <built-in searches/cartpole.json>)"), "{err}");
+    // A batch job's preset is checked the same way, before the batch starts.
+    let plan =
+        write(&d, "plan.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick", "few.json"]}]}"#);
+    refused(&d, &["batch", &plan], &["plan.json: job 1 (s): few.json: invalid search.episodes = 1: must be ≥ 2"]);
+    nothing_created(&d, &["few.json", "plan.json"]);
+}
+
+#[test]
+fn every_networks_validation_fraction_must_hold_out_a_row() {
+    let d = empty_dir("bad", "holdout");
+    let s = write(
+        &d,
+        "mlp.json",
+        &patched("cartpole", r#"{"experiments": {"mlp": {"learner": {"validation_fraction": 5e-324}}}}"#),
+    );
+    refused(
+        &d,
+        &["compare", &s, "--out", "cmp"],
+        &["mlp.json: invalid experiments.mlp.learner.validation_fraction = 5e-324", "holds out no row"],
+    );
+    // From a preset, the preset is named, with the full field path.
+    let p = write(&d, "vf.json", r#"{"experiments": {"mlp": {"learner": {"validation_fraction": 5e-324}}}}"#);
+    let err = refused(
+        &d,
+        &["search", "cartpole", "--preset", &p, "--out", "run"],
+        &["vf.json: invalid experiments.mlp.learner.validation_fraction = 5e-324", "holds out no row"],
+    );
+    assert!(!err.contains("00000000000000000000"), "a 324-digit number: {err}");
+    // A comparison's networks take the tuned config's fraction: its file is named.
+    let mut t: serde_json::Value = json(Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/tuned/cartpole.json"));
+    t["network"]["validation_fraction"] = serde_json::json!(5e-324);
+    let t = write(&d, "t.json", &t.to_string());
+    refused(
+        &d,
+        &["compare", "cartpole", "--tuned", &t, "--learner", "mlp", "--out", "cmp"],
+        &["t.json: invalid network.validation_fraction = 5e-324", "holds out no row"],
+    );
+    nothing_created(&d, &["mlp.json", "vf.json", "t.json"]);
 }
