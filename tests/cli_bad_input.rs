@@ -353,3 +353,48 @@ fn every_networks_validation_fraction_must_hold_out_a_row() {
     );
     nothing_created(&d, &["mlp.json", "vf.json", "t.json"]);
 }
+
+#[test]
+fn plan_fields_that_do_not_apply_to_a_job_or_are_out_of_range_are_refused() {
+    let d = empty_dir("bad", "plan-fields");
+    let job = |analysis: &str, field: &str| {
+        format!(
+            r#"{{"jobs": [{{"name": "c", "compare": "cartpole", "analysis": "{analysis}", "learner": "et", {field}}}]}}"#
+        )
+    };
+    for c in ["[]", "[0]", "[3]"] {
+        let plan = write(&d, "plan.json", &job("iterations", &format!(r#""complexities": {c}"#)));
+        refused(
+            &d,
+            &["batch", &plan, "--dry-run"],
+            &["plan.json: job 1 (c): invalid complexities", "does not apply to analysis `iterations`"],
+        );
+    }
+    // On a complexity job, a 0 is the plan's field at fault, not the learner's max_depth.
+    let plan = write(&d, "plan.json", &job("complexity", r#""complexities": [0]"#));
+    let err = refused(
+        &d,
+        &["batch", &plan, "--dry-run"],
+        &["plan.json: job 1 (c): invalid complexities = [0]: must list 1 to 1000 complexities, each in 1..=4096"],
+    );
+    assert!(!err.contains("max_depth"), "{err}");
+    let plan = write(&d, "plan.json", &job("iterations", r#""sizes": [10]"#));
+    refused(
+        &d,
+        &["batch", &plan],
+        &["plan.json: job 1 (c): invalid sizes = [10]: does not apply to analysis `iterations`"],
+    );
+    let plan = write(&d, "plan.json", &job("samples", r#""episodes": 10"#));
+    refused(
+        &d,
+        &["batch", &plan],
+        &["plan.json: job 1 (c): invalid episodes = 10: does not apply to analysis `samples`"],
+    );
+    // The same request from the command line is refused alike.
+    refused(
+        &d,
+        &["compare", "cartpole", "--analysis", "iterations", "--complexities", "1..3", "--out", "cmp"],
+        &["invalid complexities = [1, 2, 3]: does not apply to analysis `iterations`"],
+    );
+    nothing_created(&d, &["plan.json"]);
+}
