@@ -253,9 +253,29 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("every setting diverged"), "{err}");
-    // The records are there to look at.
+    assert!(err.contains("no tuned config, so no best.json"), "{err}");
+    // The records are there to look at, but no best.json a consumer could take for a tuned config.
     let gen0 = read(d.join("run/generations.jsonl"));
     assert!(gen0.contains("\"fitness\":null"), "{gen0}");
+    assert!(!d.join("run/best.json").exists(), "a best.json of no setting that scored");
+    let state = json(d.join("run/state.json"));
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().unwrap().starts_with("every setting diverged"), "{state}");
+    let o = bin().current_dir(&d).args(["status", "run"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains(" failed ") && out.contains("failed: every setting diverged"), "{out}");
+    // A best.json with fitness null (as earlier binaries wrote) is refused by every consumer.
+    let best = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole/best.json");
+    let mut v: serde_json::Value = json(best);
+    v["fitness"] = serde_json::Value::Null;
+    v.as_object_mut().unwrap().remove("validation");
+    let b = write(&d, "null.json", &v.to_string());
+    let want = ["null.json: invalid fitness = null", "every setting of this search diverged"];
+    refused(&d, &["reproduce", &b], &want);
+    refused(&d, &["compare", "cartpole", "--tuned", &b, "--out", "cmp"], &want);
+    refused(&d, &["fitness", "cartpole", "--tuned", &b], &want);
+    refused(&d, &["search", "cartpole", "--seed-config", &b, "--dry-run"], &want);
+    assert!(!d.join("cmp").exists());
 }
 
 #[test]

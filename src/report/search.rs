@@ -130,6 +130,7 @@ fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
                     st.units_done, st.reason
                 ),
                 Phase::Running => format!("Running, after {gens}. Wall time so far {wall}."),
+                Phase::Failed => format!("Failed after {gens}: {}. Wall time {wall}.", st.reason),
             }
         }
         None => format!("{gens}; no state.json."),
