@@ -279,6 +279,39 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
 }
 
 #[test]
+fn a_full_disk_while_plotting_fails_the_run_with_exit_1_and_it_resumes() {
+    let d = empty_dir("bad", "disk-full");
+    // The plot's temporary file leads to /dev/full: its write fails with ENOSPC, as on a full disk.
+    std::fs::create_dir(d.join("run")).unwrap();
+    std::os::unix::fs::symlink("/dev/full", d.join("run/.fitness.tmp.png")).unwrap();
+    let args = ["search", "cartpole", "--quick", "--population", "2", "--generations", "1", "--datasets", "1"];
+    let o = bin()
+        .current_dir(&d)
+        .args(args)
+        .args(["--episodes", "20", "--iterations", "1", "--out", "run", "--quiet"])
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(err.contains("error: run/fitness.png: No space left on device"), "{err}");
+    assert!(!err.contains("ImageError") && !err.contains("Os {"), "a debug dump: {err}");
+    assert!(std::fs::symlink_metadata(d.join("run/.fitness.tmp.png")).is_err(), "the temporary file is left");
+    let state = json(d.join("run/state.json"));
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().unwrap().contains("run/fitness.png: No space left on device"), "{state}");
+    let o = bin().current_dir(&d).args(["status", "run"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains(" failed ") && out.contains("No space left on device"), "{out}");
+    // With room again, the search resumes from its stored units and finishes.
+    let o = bin().current_dir(&d).args(["search", "--resume", "run", "--quiet"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(json(d.join("run/state.json"))["state"], "finished");
+    assert!(d.join("run/fitness.png").is_file() && d.join("run/best.json").is_file());
+}
+
+#[test]
 fn diverged_datasets_have_rows_in_run_csv() {
     let d = empty_dir("bad", "runcsv");
     let o = bin()
