@@ -50,7 +50,9 @@ fn temp_path(path: &Path) -> PathBuf {
 /// Reads and parses a JSON file; errors name the file.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     let text = fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::File { path: path.to_path_buf(), message: e.to_string() })
+    // The plain parser is the faster; what it refuses is parsed again with the field path tracked,
+    // for a message naming the field.
+    serde_json::from_str(&text).or_else(|_| crate::error::from_json_text(&text, path, ""))
 }
 
 /// Whether anything is at `path`: a file, a directory, a FIFO, or a link (even a dangling one).

@@ -398,8 +398,9 @@ pub struct RaceRule {
 impl ValidateRule {
     /// Validates the rule; errors name the field.
     pub fn validate(&self) -> Result<()> {
-        ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
-        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")?;
+        use crate::limits::{VALIDATE_DATASETS, VALIDATE_TOP, within};
+        within("validate.top", self.top, 1, VALIDATE_TOP)?;
+        within("validate.datasets", self.datasets, 1, VALIDATE_DATASETS)?;
         if let Some(r) = &self.race {
             let d = self.datasets;
             ensure(
