@@ -127,8 +127,33 @@ fn patched(env: &str, patch: &str) -> String {
 fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
     let d = empty_dir("bad", "extreme");
     let s = write(&d, "tau.json", &patched("cartpole", r#"{"env": {"tau": 1e308}}"#));
-    let err = refused(&d, &["run", &s], &["tau.json: invalid env = cartpole settings", "non-finite"]);
+    let err = refused(
+        &d,
+        &["run", &s],
+        &[
+            "tau.json: invalid env.tau = 1e308: makes the cart-pole dynamics overflow to non-finite",
+            "(the default is 0.02)",
+        ],
+    );
     assert!(!err.contains("00000000000000000000"), "a 300-digit number: {err}");
+    // The constant at fault is found by trying each changed one alone: `g` is changed too, but harmless.
+    for (patch, field) in [
+        (r#"{"env": {"force": 1e308, "g": 9.81}}"#, "env.force = 1e308"),
+        (r#"{"env": {"l": 1e-300}}"#, "env.l = 1e-300"),
+    ] {
+        let s = write(&d, "c.json", &patched("cartpole", patch));
+        let err =
+            refused(&d, &["search", &s, "--dry-run"], &[&format!("c.json: invalid {field}: makes the cart-pole")]);
+        assert!(!err.contains("00000000000000000000"), "a 300-digit number: {err}");
+    }
+    // Finite but past what the learners take (Extra-Trees holds f32): caught at validation, not as
+    // "bad data" naming nothing at the first fit.
+    let s = write(&d, "l.json", &patched("cartpole", r#"{"env": {"l": 1e200}}"#));
+    refused(
+        &d,
+        &["run", &s, "--learner", "et", "--datasets", "1", "--iterations", "1", "--episodes", "10", "--out", "out"],
+        &["l.json: invalid env.l = 1e200: makes the cart-pole dynamics reach", "beyond the ±3.4e38 the learners take"],
+    );
     let s = write(&d, "vf.json", &patched("cartpole", r#"{"search": {"network": {"validation_fraction": 0.999}}}"#));
     refused(
         &d,
@@ -145,7 +170,7 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
     let s = write(&d, "pa.json", &patched("pendulum", r#"{"search": {"actions": "per_action"}}"#));
     refused(&d, &["search", &s], &["pa.json: invalid search.actions = per_action", "continuous"]);
     refused(&d, &["run", "pendulum", "--actions", "per-action"], &["invalid actions = per_action", "continuous"]);
-    nothing_created(&d, &["tau.json", "vf.json", "vf0.json", "pa.json"]);
+    nothing_created(&d, &["tau.json", "c.json", "l.json", "vf.json", "vf0.json", "pa.json"]);
 }
 
 #[test]
