@@ -136,7 +136,10 @@ mod tests {
     fn the_constant_at_fault_is_named_among_others_changed() {
         let c = CartPoleConfig { force: 1e308, g: 9.81, ..Default::default() };
         let e = EnvConfig::Cartpole(c).validate().unwrap_err().to_string();
-        assert!(e.starts_with("invalid env.force = 1e308: makes the cart-pole dynamics overflow"), "{e}");
+        assert!(e.starts_with("invalid env.force = 1e308: makes the cart-pole dynamics reach"), "{e}");
+        let c = CartPoleConfig { tau: 1e308, ..Default::default() };
+        let e = EnvConfig::Cartpole(c).validate().unwrap_err().to_string();
+        assert!(e.starts_with("invalid env.tau = 1e308: makes the cart-pole dynamics overflow"), "{e}");
         let c = CartPoleConfig { l: 1e200, ..Default::default() };
         let e = EnvConfig::Cartpole(c).validate().unwrap_err().to_string();
         assert!(e.contains("invalid env.l = 1e200") && e.contains("beyond the ±3.4e38"), "{e}");
