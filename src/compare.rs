@@ -24,7 +24,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
+mod request;
 mod status;
+pub use request::{AnalysisChoice, LearnerChoice, Request, parse_complexities};
 pub use status::status_line;
 
 /// Which analyses to run.
@@ -78,117 +80,6 @@ pub struct CompareConfig {
     pub learners: Vec<LearnerPlan>,
     /// The tuned config the networks use.
     pub tuned: TunedConfig,
-}
-
-/// Which analyses a comparison runs (`--analysis`, a plan's `analysis`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum AnalysisChoice {
-    /// Score and steps against iterations.
-    #[default]
-    Iterations,
-    /// Score against complexity × iteration.
-    Complexity,
-    /// Last-iteration score against dataset size.
-    Samples,
-    /// All three.
-    All,
-}
-
-impl AnalysisChoice {
-    /// The analyses chosen, in report order.
-    pub fn analyses(self) -> Vec<Analysis> {
-        match self {
-            AnalysisChoice::Iterations => vec![Analysis::Iterations],
-            AnalysisChoice::Complexity => vec![Analysis::Complexity],
-            AnalysisChoice::Samples => vec![Analysis::Samples],
-            AnalysisChoice::All => vec![Analysis::Iterations, Analysis::Complexity, Analysis::Samples],
-        }
-    }
-}
-
-/// Which learners a comparison runs (`--learner`, a plan's `learner`).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum LearnerChoice {
-    /// Extra-Trees only.
-    Et,
-    /// The MLP only.
-    Mlp,
-    /// Extra-Trees, then the MLP.
-    #[default]
-    Both,
-}
-
-impl LearnerChoice {
-    /// The learners chosen, in report order.
-    pub fn learners(self) -> Vec<LearnerKind> {
-        match self {
-            LearnerChoice::Et => vec![LearnerKind::Et],
-            LearnerChoice::Mlp => vec![LearnerKind::Mlp],
-            LearnerChoice::Both => vec![LearnerKind::Et, LearnerKind::Mlp],
-        }
-    }
-}
-
-/// What a comparison is asked for besides its spec: the tuned config, the analyses, the learners and
-/// overrides of the spec's presets. Declared once for `compare`'s flags and a batch plan's compare
-/// jobs, whose fields are the flags' names (`"analysis": "all"`, `"complexities": [1, 2, 5]`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, clap::Args)]
-#[serde(deny_unknown_fields)]
-pub struct Request {
-    /// Tuned config: `thesis` (the thesis's GA optimum) or a search's best.json.
-    #[arg(long, default_value = "thesis")]
-    #[serde(default = "thesis")]
-    pub tuned: String,
-    /// Which analyses.
-    #[arg(long, value_enum, default_value_t)]
-    #[serde(default)]
-    pub analysis: AnalysisChoice,
-    /// Which learners.
-    #[arg(long, value_enum, default_value_t)]
-    #[serde(default)]
-    pub learner: LearnerChoice,
-    /// Datasets per point (overrides the spec).
-    #[arg(long)]
-    pub datasets: Option<usize>,
-    /// Episodes per dataset (iterations and complexity analyses).
-    #[arg(long)]
-    pub episodes: Option<usize>,
-    /// FQI iterations K.
-    #[arg(long)]
-    pub iterations: Option<usize>,
-    /// Complexities, as `1..15` or `1,2,5`.
-    // The full path keeps clap from reading `Vec` as a repeated flag: one value, parsed whole.
-    #[arg(long, value_parser = parse_complexities)]
-    pub complexities: Option<::std::vec::Vec<usize>>,
-    /// Dataset sizes of the sample analysis, in episodes: `10,25,50`.
-    #[arg(long, value_delimiter = ',')]
-    pub sizes: Option<Vec<usize>>,
-}
-
-fn thesis() -> String {
-    "thesis".into()
-}
-
-/// Parses `--complexities`: `1..15` (inclusive) or `1,2,5`, each ≥ 1.
-pub fn parse_complexities(text: &str) -> Result<Vec<usize>> {
-    let bad = || Error::Usage("must be like 1..15 or 1,2,5 (each ≥ 1)".into());
-    let v: Vec<usize> = if let Some((a, b)) = text.split_once("..") {
-        let (a, b): (usize, usize) = (a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?);
-        // Checked before the range is collected: 1..10^12 must be refused, not allocated.
-        let points = crate::limits::SWEEP_POINTS;
-        if a > b || b - a >= points {
-            return Err(Error::Usage(format!("a range must be lo..hi with at most {points} values")));
-        }
-        (a..=b).collect()
-    } else {
-        text.split(',').map(|x| x.trim().parse().map_err(|_| bad())).collect::<Result<_>>()?
-    };
-    if v.is_empty() || v.contains(&0) {
-        return Err(bad());
-    }
-    Ok(v)
 }
 
 /// The network of a preset with a tuned config's activation and early stopping.
@@ -403,6 +294,7 @@ pub fn prepare(spec_name: &str, r: &Request, out: Option<&Path>, results: &Path)
 
 /// The configuration and run record a comparison would start with, validated, creating nothing.
 pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_json::Value)> {
+    r.check()?;
     if let Some(d) = r.datasets {
         crate::limits::within("datasets", d, 1, crate::limits::DATASETS)?;
     }

@@ -120,7 +120,9 @@ pub fn collect(env: &dyn Env, episodes: usize, seed: u64) -> Result<Dataset> {
     Ok(out)
 }
 
-fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
+/// Episode `e` of the dataset of `seed` alone: what [`collect`] gives for it, so a check can
+/// collect a dataset an episode at a time and stop once it has seen enough.
+pub fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
     let mut rng = stream(seed, rng::purpose::EPISODE, &[e as u64]);
     let (sd, od) = (env.state_dim(), env.obs_dim());
     let mut s = [0.0; MAX_STATE];

@@ -98,6 +98,24 @@ pub fn from_json<T: serde::de::DeserializeOwned + serde::Serialize>(
     Ok(t)
 }
 
+/// Parses JSON text read from `origin` as a `T`; an error names the file and the field path
+/// (`field env.g: invalid type …`) after `context`, as [`from_json`] does, so the markers that
+/// carry a [`tagged`] enum's inner path never reach a message.
+pub fn from_json_text<T: serde::de::DeserializeOwned>(
+    text: &str,
+    origin: &std::path::Path,
+    context: &str,
+) -> Result<T> {
+    let file = |message: String| Error::File { path: origin.to_path_buf(), message };
+    let mut de = serde_json::Deserializer::from_str(text);
+    let t: T = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let (path, inner) = joined(e);
+        file(if path == "." { format!("{context}{inner}") } else { format!("{context}field {path}: {inner}") })
+    })?;
+    de.end().map_err(|e| file(format!("{context}{e}")))?;
+    Ok(t)
+}
+
 /// The first field path at which `given` holds an array where `read` (the same document as
 /// deserialised and written back) holds an object.
 fn array_for_object(given: &serde_json::Value, read: &serde_json::Value, path: String) -> Option<String> {

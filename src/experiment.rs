@@ -68,7 +68,12 @@ impl RunConfig {
         limits::within("iterations", self.iterations, 1, ITERATIONS)?;
         ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
         limits::episodes("episodes", self.episodes, self.env.env().horizon())?;
-        limits::within("datasets", self.datasets, 1, DATASETS)
+        limits::within("datasets", self.datasets, 1, DATASETS)?;
+        match &self.learner {
+            LearnerConfig::Mlp(net) => crate::spec::holdout(net, self.episodes, self.env.env().horizon(), "episodes")
+                .map_err(|e| e.within("learner")),
+            LearnerConfig::ExtraTrees(_) => Ok(()),
+        }
     }
 
     /// A short hash of the configuration's canonical JSON (recorded in model files).

@@ -32,6 +32,14 @@ pub const EVAL_EPISODES: usize = 1_000_000;
 pub const EVAL_STEPS: usize = 10_000_000;
 /// Worker threads (`--jobs`).
 pub const JOBS: usize = 1024;
+/// Settings a search's validation re-scores (`search.validate.top`, `validate --top`).
+pub const VALIDATE_TOP: usize = 100;
+/// Validation datasets of a search's validation (`search.validate.datasets`, `validate --datasets`;
+/// with a race, the most any setting gets).
+pub const VALIDATE_DATASETS: usize = 1000;
+/// Bytes of a model file (4 GiB), checked before it is read whole: 25 times the largest model the
+/// thesis's settings give (the bicycle's B-FQI on Extra-Trees, 20 members × 50 trees, 165 MB).
+pub const MODEL_BYTES: u64 = 4 << 30;
 
 /// `lo ≤ v ≤ hi`, or an error naming `field` and the range.
 pub fn within(field: &str, v: usize, lo: usize, hi: usize) -> Result<()> {

@@ -29,11 +29,17 @@ fn main() -> ExitCode {
         // 128 + SIGINT, as a shell reports a command Ctrl-C ended.
         Ok(Outcome::Interrupted) => ExitCode::from(130),
         Err(e) => {
-            // One line: the chain of contexts, outermost first.
-            eprintln!("error: {e:#}");
+            // One line: the chain of contexts, outermost first, with control characters (from a
+            // damaged file's strings) escaped, so none can break the line or reach the terminal.
+            eprintln!("error: {}", escape_controls(&format!("{e:#}")));
             ExitCode::from(exit_code(&e))
         }
     }
+}
+
+/// `text` with every control character written as its escape (`\n`, `\u{7}`).
+fn escape_controls(text: &str) -> String {
+    text.chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
 }
 
 /// The exit code of an error, decided here for every command: 1 when a run failed or a check

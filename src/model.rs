@@ -203,7 +203,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Model> {
         return Err(refuse("truncated or corrupt model file (checksum mismatch)".into()));
     }
     let body: Body = postcard::from_bytes(body).map_err(|e| refuse(format!("corrupt model file: {e}")))?;
-    let info: ModelInfo = serde_json::from_str(&body.info).map_err(|e| refuse(format!("model info: {e}")))?;
+    let info: ModelInfo = crate::error::from_json_text(&body.info, path, "model info: ")?;
     info.env.validate().map_err(|e| refuse(format!("model info: {e}")))?;
     let fix = |e: Error| refuse(format!("corrupt model: {e}"));
     let q = match body.members {
@@ -258,11 +258,19 @@ pub fn save(path: &Path, model: &Model) -> Result<()> {
 
 /// Reads a model file; a file of another format version, truncated or damaged, is refused.
 pub fn load(path: &Path) -> Result<Model> {
-    if !path.is_file() {
-        return Err(Error::File {
-            path: path.to_path_buf(),
-            message: "not a model file (missing or not a file)".into(),
-        });
+    let refuse = |message: String| Error::File { path: path.to_path_buf(), message };
+    let size = match std::fs::metadata(path) {
+        Ok(m) if m.is_file() => m.len(),
+        _ => return Err(refuse("not a model file (missing or not a file)".into())),
+    };
+    // Read whole, so a file past the cap would claim its size in memory before any check.
+    let cap = crate::limits::MODEL_BYTES;
+    if size > cap {
+        return Err(refuse(format!(
+            "is {size} bytes ({:.1} GiB); model files are capped at {cap} bytes ({} GiB)",
+            size as f64 / f64::from(1u32 << 30),
+            cap >> 30
+        )));
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     decode(&bytes, path)

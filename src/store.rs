@@ -9,16 +9,26 @@ use std::path::{Path, PathBuf};
 /// Writes `path` atomically: `fill` writes into a temporary file beside it, which is flushed, synced
 /// and renamed over `path`. On any error the temporary file is removed and `path` is untouched.
 pub fn write_atomic(path: &Path, fill: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<()> {
-    let tmp = temp_path(path);
+    write_atomic_via(path, &temp_path(path), fill)
+}
+
+/// [`write_atomic`] through the temporary file `tmp` (which must be beside `path`): for writers
+/// whose temporary files have names of their own (plots' `.<name>.tmp.png`). On any error `tmp`
+/// is removed and the error names `path`, keeping the OS's error (a full disk is exit 1).
+pub fn write_atomic_via(
+    path: &Path,
+    tmp: &Path,
+    fill: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
+) -> Result<()> {
     let result = (|| {
-        let mut w = BufWriter::new(File::create(&tmp)?);
+        let mut w = BufWriter::new(File::create(tmp)?);
         fill(&mut w)?;
         let f = w.into_inner().map_err(|e| e.into_error())?;
         f.sync_all()?;
-        fs::rename(&tmp, path)
+        fs::rename(tmp, path)
     })();
     if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
+        let _ = fs::remove_file(tmp);
         return Err(Error::io(path, e));
     }
     Ok(())
@@ -40,7 +50,9 @@ fn temp_path(path: &Path) -> PathBuf {
 /// Reads and parses a JSON file; errors name the file.
 pub fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     let text = fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::File { path: path.to_path_buf(), message: e.to_string() })
+    // The plain parser is the faster; what it refuses is parsed again with the field path tracked,
+    // for a message naming the field.
+    serde_json::from_str(&text).or_else(|_| crate::error::from_json_text(&text, path, ""))
 }
 
 /// Whether anything is at `path`: a file, a directory, a FIFO, or a link (even a dangling one).

@@ -105,6 +105,14 @@ impl TunedConfig {
             "mismatch",
             "network.activation, network.delta_min and network.patience must equal the top-level values",
         )?;
+        // A search writes no best.json when every setting diverged; one that says so anyway (an
+        // earlier binary's) holds no setting that scored.
+        ensure(
+            self.source != "search" || self.fitness.is_some() || self.validation.is_some(),
+            "fitness",
+            "null",
+            "a search's tuned config needs a fitness: every setting of this search diverged, so it found none",
+        )?;
         ensure(self.iterations >= 1, "iterations", self.iterations, "must be ≥ 1")?;
         ensure(self.episodes >= 1, "episodes", self.episodes, "must be ≥ 1")?;
         ensure(self.datasets >= 1, "datasets", self.datasets, "must be ≥ 1")?;
@@ -122,6 +130,13 @@ impl TunedConfig {
                 )?;
             }
         }
+        // A network that could not hold out a validation row of its own search's datasets was
+        // never trained; a comparison would fail at its first fit.
+        let horizon = match &self.spec {
+            Some(s) => s.env.env().horizon(),
+            None => crate::env::EnvConfig::by_name(&self.env)?.env().horizon(),
+        };
+        crate::spec::holdout(&self.network, self.episodes, horizon, "episodes").map_err(|e| e.within("network"))?;
         Ok(())
     }
 

@@ -127,8 +127,33 @@ fn patched(env: &str, patch: &str) -> String {
 fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
     let d = empty_dir("bad", "extreme");
     let s = write(&d, "tau.json", &patched("cartpole", r#"{"env": {"tau": 1e308}}"#));
-    let err = refused(&d, &["run", &s], &["tau.json: invalid env = cartpole settings", "non-finite"]);
+    let err = refused(
+        &d,
+        &["run", &s],
+        &[
+            "tau.json: invalid env.tau = 1e308: makes the cart-pole dynamics overflow to non-finite",
+            "(the default is 0.02)",
+        ],
+    );
     assert!(!err.contains("00000000000000000000"), "a 300-digit number: {err}");
+    // The constant at fault is found by trying each changed one alone: `g` is changed too, but harmless.
+    for (patch, field) in [
+        (r#"{"env": {"force": 1e308, "g": 9.81}}"#, "env.force = 1e308"),
+        (r#"{"env": {"l": 1e-300}}"#, "env.l = 1e-300"),
+    ] {
+        let s = write(&d, "c.json", &patched("cartpole", patch));
+        let err =
+            refused(&d, &["search", &s, "--dry-run"], &[&format!("c.json: invalid {field}: makes the cart-pole")]);
+        assert!(!err.contains("00000000000000000000"), "a 300-digit number: {err}");
+    }
+    // Finite but past what the learners take (Extra-Trees holds f32): caught at validation, not as
+    // "bad data" naming nothing at the first fit.
+    let s = write(&d, "l.json", &patched("cartpole", r#"{"env": {"l": 1e200}}"#));
+    refused(
+        &d,
+        &["run", &s, "--learner", "et", "--datasets", "1", "--iterations", "1", "--episodes", "10", "--out", "out"],
+        &["l.json: invalid env.l = 1e200: makes the cart-pole dynamics reach", "beyond the ±3.4e38 the learners take"],
+    );
     let s = write(&d, "vf.json", &patched("cartpole", r#"{"search": {"network": {"validation_fraction": 0.999}}}"#));
     refused(
         &d,
@@ -145,7 +170,7 @@ fn extreme_but_typed_values_are_caught_at_validation_with_their_field() {
     let s = write(&d, "pa.json", &patched("pendulum", r#"{"search": {"actions": "per_action"}}"#));
     refused(&d, &["search", &s], &["pa.json: invalid search.actions = per_action", "continuous"]);
     refused(&d, &["run", "pendulum", "--actions", "per-action"], &["invalid actions = per_action", "continuous"]);
-    nothing_created(&d, &["tau.json", "vf.json", "vf0.json", "pa.json"]);
+    nothing_created(&d, &["tau.json", "c.json", "l.json", "vf.json", "vf0.json", "pa.json"]);
 }
 
 #[test]
@@ -253,9 +278,62 @@ fn a_search_in_which_every_unit_diverged_fails_with_exit_1() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("every setting diverged"), "{err}");
-    // The records are there to look at.
+    assert!(err.contains("no tuned config, so no best.json"), "{err}");
+    // The records are there to look at, but no best.json a consumer could take for a tuned config.
     let gen0 = read(d.join("run/generations.jsonl"));
     assert!(gen0.contains("\"fitness\":null"), "{gen0}");
+    assert!(!d.join("run/best.json").exists(), "a best.json of no setting that scored");
+    let state = json(d.join("run/state.json"));
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().unwrap().starts_with("every setting diverged"), "{state}");
+    let o = bin().current_dir(&d).args(["status", "run"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains(" failed ") && out.contains("failed: every setting diverged"), "{out}");
+    // A best.json with fitness null (as earlier binaries wrote) is refused by every consumer.
+    let best = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole/best.json");
+    let mut v: serde_json::Value = json(best);
+    v["fitness"] = serde_json::Value::Null;
+    v.as_object_mut().unwrap().remove("validation");
+    let b = write(&d, "null.json", &v.to_string());
+    let want = ["null.json: invalid fitness = null", "every setting of this search diverged"];
+    refused(&d, &["reproduce", &b], &want);
+    refused(&d, &["compare", "cartpole", "--tuned", &b, "--out", "cmp"], &want);
+    refused(&d, &["fitness", "cartpole", "--tuned", &b], &want);
+    refused(&d, &["search", "cartpole", "--seed-config", &b, "--dry-run"], &want);
+    assert!(!d.join("cmp").exists());
+}
+
+#[test]
+fn a_full_disk_while_plotting_fails_the_run_with_exit_1_and_it_resumes() {
+    let d = empty_dir("bad", "disk-full");
+    // The plot's temporary file leads to /dev/full: its write fails with ENOSPC, as on a full disk.
+    std::fs::create_dir(d.join("run")).unwrap();
+    std::os::unix::fs::symlink("/dev/full", d.join("run/.fitness.tmp.png")).unwrap();
+    let args = ["search", "cartpole", "--quick", "--population", "2", "--generations", "1", "--datasets", "1"];
+    let o = bin()
+        .current_dir(&d)
+        .args(args)
+        .args(["--episodes", "20", "--iterations", "1", "--out", "run", "--quiet"])
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(err.contains("error: run/fitness.png: No space left on device"), "{err}");
+    assert!(!err.contains("ImageError") && !err.contains("Os {"), "a debug dump: {err}");
+    assert!(std::fs::symlink_metadata(d.join("run/.fitness.tmp.png")).is_err(), "the temporary file is left");
+    let state = json(d.join("run/state.json"));
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().unwrap().contains("run/fitness.png: No space left on device"), "{state}");
+    let o = bin().current_dir(&d).args(["status", "run"]).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains(" failed ") && out.contains("No space left on device"), "{out}");
+    // With room again, the search resumes from its stored units and finishes.
+    let o = bin().current_dir(&d).args(["search", "--resume", "run", "--quiet"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(json(d.join("run/state.json"))["state"], "finished");
+    assert!(d.join("run/fitness.png").is_file() && d.join("run/best.json").is_file());
 }
 
 #[test]
@@ -296,6 +374,105 @@ fn a_dataset_too_small_for_the_network_names_the_episode_count() {
             "run",
             "--quiet",
         ],
-        &["invalid search.episodes = 1: too few for search dataset"],
+        &["invalid search.episodes = 1: must be ≥ 2", "search dataset 2 has 0 transition(s) of action 0"],
     );
+    assert!(!d.join("run").exists(), "refused at validation, before the run directory");
+}
+
+#[test]
+fn too_few_episodes_from_a_preset_are_refused_at_validation_naming_the_preset() {
+    let d = empty_dir("bad", "preset-episodes");
+    let p = write(&d, "few.json", r#"{"search": {"episodes": 1}}"#);
+    let args = ["search", "cartpole", "--quick", "--preset", &p, "--population", "2", "--generations", "1"];
+    let err = refused(
+        &d,
+        &[&args[..], &["--out", "run", "--quiet"]].concat(),
+        &[
+            "few.json: invalid search.episodes = 1: must be ≥ 2: with 1, search dataset 2 has 0 transition(s) of action 0",
+        ],
+    );
+    assert!(err.contains("(applied to <built-in searches/cartpole.json>)"), "{err}");
+    // A batch job's preset is checked the same way, before the batch starts.
+    let plan =
+        write(&d, "plan.json", r#"{"jobs": [{"name": "s", "search": "cartpole", "presets": ["quick", "few.json"]}]}"#);
+    refused(&d, &["batch", &plan], &["plan.json: job 1 (s): few.json: invalid search.episodes = 1: must be ≥ 2"]);
+    nothing_created(&d, &["few.json", "plan.json"]);
+}
+
+#[test]
+fn every_networks_validation_fraction_must_hold_out_a_row() {
+    let d = empty_dir("bad", "holdout");
+    let s = write(
+        &d,
+        "mlp.json",
+        &patched("cartpole", r#"{"experiments": {"mlp": {"learner": {"validation_fraction": 5e-324}}}}"#),
+    );
+    refused(
+        &d,
+        &["compare", &s, "--out", "cmp"],
+        &["mlp.json: invalid experiments.mlp.learner.validation_fraction = 5e-324", "holds out no row"],
+    );
+    // From a preset, the preset is named, with the full field path.
+    let p = write(&d, "vf.json", r#"{"experiments": {"mlp": {"learner": {"validation_fraction": 5e-324}}}}"#);
+    let err = refused(
+        &d,
+        &["search", "cartpole", "--preset", &p, "--out", "run"],
+        &["vf.json: invalid experiments.mlp.learner.validation_fraction = 5e-324", "holds out no row"],
+    );
+    assert!(!err.contains("00000000000000000000"), "a 324-digit number: {err}");
+    // A comparison's networks take the tuned config's fraction: its file is named.
+    let mut t: serde_json::Value = json(Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/tuned/cartpole.json"));
+    t["network"]["validation_fraction"] = serde_json::json!(5e-324);
+    let t = write(&d, "t.json", &t.to_string());
+    refused(
+        &d,
+        &["compare", "cartpole", "--tuned", &t, "--learner", "mlp", "--out", "cmp"],
+        &["t.json: invalid network.validation_fraction = 5e-324", "holds out no row"],
+    );
+    nothing_created(&d, &["mlp.json", "vf.json", "t.json"]);
+}
+
+#[test]
+fn plan_fields_that_do_not_apply_to_a_job_or_are_out_of_range_are_refused() {
+    let d = empty_dir("bad", "plan-fields");
+    let job = |analysis: &str, field: &str| {
+        format!(
+            r#"{{"jobs": [{{"name": "c", "compare": "cartpole", "analysis": "{analysis}", "learner": "et", {field}}}]}}"#
+        )
+    };
+    for c in ["[]", "[0]", "[3]"] {
+        let plan = write(&d, "plan.json", &job("iterations", &format!(r#""complexities": {c}"#)));
+        refused(
+            &d,
+            &["batch", &plan, "--dry-run"],
+            &["plan.json: job 1 (c): invalid complexities", "does not apply to analysis `iterations`"],
+        );
+    }
+    // On a complexity job, a 0 is the plan's field at fault, not the learner's max_depth.
+    let plan = write(&d, "plan.json", &job("complexity", r#""complexities": [0]"#));
+    let err = refused(
+        &d,
+        &["batch", &plan, "--dry-run"],
+        &["plan.json: job 1 (c): invalid complexities = [0]: must list 1 to 1000 complexities, each in 1..=4096"],
+    );
+    assert!(!err.contains("max_depth"), "{err}");
+    let plan = write(&d, "plan.json", &job("iterations", r#""sizes": [10]"#));
+    refused(
+        &d,
+        &["batch", &plan],
+        &["plan.json: job 1 (c): invalid sizes = [10]: does not apply to analysis `iterations`"],
+    );
+    let plan = write(&d, "plan.json", &job("samples", r#""episodes": 10"#));
+    refused(
+        &d,
+        &["batch", &plan],
+        &["plan.json: job 1 (c): invalid episodes = 10: does not apply to analysis `samples`"],
+    );
+    // The same request from the command line is refused alike.
+    refused(
+        &d,
+        &["compare", "cartpole", "--analysis", "iterations", "--complexities", "1..3", "--out", "cmp"],
+        &["invalid complexities = [1, 2, 3]: does not apply to analysis `iterations`"],
+    );
+    nothing_created(&d, &["plan.json"]);
 }

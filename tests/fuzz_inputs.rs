@@ -1,11 +1,13 @@
-//! A seeded fuzz test of every input a user edits: the shipped spec files, the presets, the
-//! overnight plan and a search's best.json, mutated (fields deleted, wrong types, out-of-range and
-//! huge numbers, truncation, duplicate keys, non-objects) and run through the command that reads
-//! them. Whatever the input: exit 0, 1 or 2, never a panic or an abort, a refusal in one line
-//! that names the file.
+//! A seeded fuzz test of every input a user edits or a run leaves on disk: the shipped spec files,
+//! the presets, the overnight plan, a search's best.json, a comparison run directory's
+//! compare.json and units, and model files (`run --save-model`), mutated (fields deleted, wrong
+//! types, out-of-range and huge numbers, truncation, duplicate keys, non-objects; for model
+//! files also flipped, overwritten and appended bytes, and info edits with the checksum made
+//! right) and run through the command that reads them. Whatever the input: exit 0, 1 or 2, never
+//! a panic, an abort or a signal, a refusal in one line that names the file.
 
 mod common;
-use common::{bin, empty_dir, read};
+use common::{bin, copy_dir, empty_dir, read};
 
 use serde_json::Value;
 use std::path::Path;
@@ -191,9 +193,187 @@ fn mutated_inputs_never_panic_and_refusals_name_their_file() {
             }
         }
     }
+    let (dir_runs, dir_refused) = run_directories(&work, &mut rng);
+    let (model_runs, model_refused) = model_files(&work, &mut rng);
     eprintln!(
-        "{runs} mutated inputs: {refused} refused, {timed_out} still running after 3 s (valid), {:.1} s",
+        "{} mutations: {runs} of input files ({refused} refused), {dir_runs} of comparison run directories \
+         ({dir_refused} refused), {model_runs} of model files ({model_refused} refused); {timed_out} still running \
+         after 3 s (valid); {:.1} s",
+        runs + dir_runs + model_runs,
         started.elapsed().as_secs_f64()
     );
     assert!(refused > runs / 2, "most mutations must be refused: {refused} of {runs}");
+    assert!(dir_refused > dir_runs / 2, "most run directory mutations must be refused: {dir_refused} of {dir_runs}");
+    assert!(model_refused > model_runs / 2, "most model mutations must be refused: {model_refused} of {model_runs}");
+}
+
+/// Checks one command's ending: exit 0, 1 or 2 (never 101, a panic, nor a signal, which has no
+/// code), nothing panicked or aborted, and a refusal is one line naming `name`. Whether it was
+/// refused.
+fn judge(args: &[String], dir: &Path, name: &str, what: &str) -> bool {
+    let Some((code, err)) = run(args, dir) else { return false };
+    let what = format!("{args:?} on {what}: exit {code}: {err}");
+    assert!([0, 1, 2].contains(&code), "{what}");
+    assert!(!err.contains("panicked") && !err.contains("memory allocation"), "{what}");
+    if code == 2 {
+        assert_eq!(err.trim_end().lines().count(), 1, "not one line: {what}");
+        assert!(err.contains(name), "the refusal does not name {name}: {what}");
+    }
+    code == 2
+}
+
+/// A small comparison's run directory, copied and damaged once per case: compare.json read by
+/// `compare --resume`, a unit file read by `report`. Returns (runs, refused).
+fn run_directories(work: &Path, rng: &mut Rng) -> (usize, usize) {
+    let o = bin()
+        .current_dir(work)
+        .args(["compare", "cartpole", "--analysis", "iterations", "--learner", "et", "--datasets", "1"])
+        .args(["--iterations", "1", "--episodes", "10", "--out", "cmp", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let units: Vec<String> = std::fs::read_dir(work.join("cmp/units"))
+        .unwrap()
+        .map(|e| format!("units/{}", e.unwrap().file_name().to_string_lossy()))
+        .collect();
+    assert_eq!(units.len(), 2, "{units:?}");
+    let (mut runs, mut refused) = (0, 0);
+    for k in 0..120 {
+        let name = format!("c{k}");
+        let dir = work.join(&name);
+        copy_dir(&work.join("cmp"), &dir);
+        let (file, cmd) = if k % 2 == 0 {
+            ("compare.json".to_string(), owned(&["compare", "--resume", &name, "--quiet"]))
+        } else {
+            (units[k / 2 % units.len()].clone(), owned(&["report", &name]))
+        };
+        let mutated = mutate(&read(dir.join(&file)), rng);
+        std::fs::write(dir.join(&file), &mutated).unwrap();
+        runs += 1;
+        if judge(&cmd, work, &name, &format!("{file} = {mutated:.300}")) {
+            refused += 1;
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    (runs, refused)
+}
+
+/// FNV-1a, 64 bits: the model file's checksum of its body.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// A model file (8-byte magic, u16 version, postcard body, FNV-1a of the body) with its body
+/// replaced and the checksum made right, so a mutation reaches the checks past the checksum.
+fn with_body(bytes: &[u8], body: &[u8]) -> Vec<u8> {
+    let mut out = bytes[..10].to_vec();
+    out.extend_from_slice(body);
+    out.extend_from_slice(&fnv1a(body).to_le_bytes());
+    out
+}
+
+/// The body's first field, the info JSON (a postcard string: varint length, then the text): its
+/// text and the rest of the body.
+fn split_info(body: &[u8]) -> (String, &[u8]) {
+    let (mut len, mut at) = (0usize, 0);
+    loop {
+        len |= usize::from(body[at] & 0x7f) << (7 * at);
+        at += 1;
+        if body[at - 1] < 0x80 {
+            break;
+        }
+    }
+    (String::from_utf8(body[at..at + len].to_vec()).unwrap(), &body[at + len..])
+}
+
+fn varint(mut n: usize, out: &mut Vec<u8>) {
+    loop {
+        let b = (n & 0x7f) as u8;
+        n >>= 7;
+        out.push(if n > 0 { b | 0x80 } else { b });
+        if n == 0 {
+            return;
+        }
+    }
+}
+
+/// One mutation of a model file's bytes.
+fn mutate_model(bytes: &[u8], rng: &mut Rng) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    let body = &bytes[10..bytes.len() - 8];
+    match rng.below(6) {
+        0 => {
+            // Flip a byte anywhere (the checksum catches it, or the header check).
+            let i = rng.below(b.len());
+            b[i] ^= 1 << rng.below(8);
+            b
+        }
+        1 => {
+            b.truncate(rng.below(b.len()));
+            b
+        }
+        2 => {
+            // Another version, or another magic.
+            let i = rng.below(10);
+            b[i] = rng.below(256) as u8;
+            b
+        }
+        3 => {
+            // The info JSON mutated, the file's checksum right: the info's own checks must refuse it.
+            let (info, rest) = split_info(body);
+            let info = mutate(&info, rng);
+            let mut new = Vec::new();
+            varint(info.len(), &mut new);
+            new.extend_from_slice(info.as_bytes());
+            new.extend_from_slice(rest);
+            with_body(bytes, &new)
+        }
+        4 => {
+            // The members' bytes damaged under a right checksum: the decoder must refuse them.
+            let mut new = body.to_vec();
+            for _ in 0..1 + rng.below(8) {
+                let i = rng.below(new.len());
+                new[i] = rng.below(256) as u8;
+            }
+            with_body(bytes, &new)
+        }
+        _ => {
+            b.extend((0..1 + rng.below(64)).map(|_| rng.below(256) as u8));
+            b
+        }
+    }
+}
+
+/// Model files of both learners (`run --save-model`), mutated and read by `evaluate` and
+/// `rollout`. Returns (runs, refused).
+fn model_files(work: &Path, rng: &mut Rng) -> (usize, usize) {
+    let mut models = Vec::new();
+    for (learner, extra) in [("et", ["--trees", "2"]), ("mlp", ["--hidden", "4"])] {
+        let out = format!("models-{learner}");
+        let o = bin()
+            .current_dir(work)
+            .args(["run", "cartpole", "--learner", learner, "--datasets", "1", "--iterations", "2"])
+            .args(["--episodes", "10", "--out", &format!("run-{learner}"), "--save-model", &out])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        models.push(std::fs::read(work.join(out).join("dataset-0.model")).unwrap());
+    }
+    let (mut runs, mut refused) = (0, 0);
+    for k in 0..240 {
+        let name = format!("q{k}.model");
+        let mutated = mutate_model(&models[k % models.len()], rng);
+        std::fs::write(work.join(&name), &mutated).unwrap();
+        let cmd = if k % 4 == 3 {
+            owned(&["rollout", &name, "--steps", "20", "--frames", "2", "--out", &format!("r{k}")])
+        } else {
+            owned(&["evaluate", &name, "--episodes", "2", "--steps", "20"])
+        };
+        runs += 1;
+        if judge(&cmd, work, &name, &format!("{} bytes of a mutated model", mutated.len())) {
+            refused += 1;
+        }
+    }
+    (runs, refused)
 }

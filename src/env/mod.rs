@@ -6,10 +6,12 @@
 
 mod bicycle;
 mod cartpole;
+mod check;
 mod pendulum;
 
 pub use bicycle::BicycleConfig;
 pub use cartpole::CartPoleConfig;
+pub use check::LEARNER_MAX;
 pub use pendulum::PendulumConfig;
 
 use crate::error::{Error, Result, ensure};
@@ -193,35 +195,10 @@ impl EnvConfig {
         self.check_dynamics()
     }
 
-    /// Every constant can be finite and positive and the dynamics still overflow (`tau` 1e308):
-    /// a few random-policy episodes of up to 100 steps, from a fixed stream, must keep states and
-    /// rewards finite. Caught here, it is a one-line refusal instead of a "non-finite target"
-    /// hours into a search.
+    /// The dynamics must stay finite and within what learners take for a few random episodes
+    /// ([`check::dynamics`]), which names the constant at fault.
     fn check_dynamics(&self) -> Result<()> {
-        let env = self.env();
-        let sd = env.state_dim();
-        for e in 0..3u64 {
-            let mut rng = crate::rng::stream(0, crate::rng::purpose::ENV_CHECK, &[e]);
-            let (mut s, mut next) = ([0.0; MAX_STATE], [0.0; MAX_STATE]);
-            env.dataset_start(&mut rng, &mut s[..sd]);
-            for _ in 0..env.horizon().min(100) {
-                let a = env.dataset_action(&mut rng);
-                let o = env.step(&s[..sd], a, &mut rng, &mut next[..sd]);
-                if !o.reward.is_finite() || next[..sd].iter().any(|v| !v.is_finite()) {
-                    return Err(Error::invalid(
-                        "env",
-                        format!("{} settings", env.name()),
-                        "the dynamics overflow to non-finite states or rewards within 100 random steps; \
-                         bring the constants back to a physical range",
-                    ));
-                }
-                if o.failed {
-                    break;
-                }
-                s = next;
-            }
-        }
-        Ok(())
+        check::dynamics(self)
     }
 
     /// Whether every action a dataset can take is one of the discrete actions (the `per_action`

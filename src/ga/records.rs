@@ -184,6 +184,9 @@ pub enum Phase {
     Finished,
     /// Stopped early (Ctrl-C, the time budget); it resumes.
     Interrupted,
+    /// Ended by an error (a write that failed, a full disk) or with no tuned config (every setting
+    /// diverged); `reason` says which. `--resume` tries again from the stored units.
+    Failed,
 }
 
 impl Phase {
@@ -193,6 +196,7 @@ impl Phase {
             Phase::Running => "running",
             Phase::Finished => "finished",
             Phase::Interrupted => "interrupted",
+            Phase::Failed => "failed",
         }
     }
 }
@@ -200,7 +204,7 @@ impl Phase {
 /// `state.json`: where a run stands.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunState {
-    /// Running, finished or interrupted.
+    /// Running, finished, interrupted or failed.
     pub state: Phase,
     /// Generations completed.
     pub generation: usize,

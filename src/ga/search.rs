@@ -6,7 +6,7 @@
 //! - `run.json` — what was asked (spec source, presets, overrides) and `spec.json`, the resolved spec;
 //! - `units/<genes>.d<i>.json` — one FQI run of a chromosome on a search dataset (written atomically);
 //! - `generations.jsonl`, `hall_of_fame.json`, `best.json` (the tuned config), `fitness.csv`,
-//!   `fitness.png`, `fitness.svg`, and `state.json` (running / finished / interrupted).
+//!   `fitness.png`, `fitness.svg`, and `state.json` (running / finished / interrupted / failed).
 //!
 //! A search is replayed from generation 0 on every start: chromosomes whose unit files exist are
 //! read, not retrained, so resuming is just running again.
@@ -123,14 +123,43 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     // atomic writes are removed (the lock is ours, so no writer is alive).
     store::remove_temporaries(dir)?;
     UnitStore::units(dir).prepare()?;
-    let ending = run_generations(dir, &spec, exec, budget, quiet)?;
+    // Whatever ends the run with an error, state.json says so (it would read `running`).
+    let ending = run_to_end(dir, &spec, exec, budget, quiet).inspect_err(|e| {
+        let text = e.to_string();
+        let text = text.strip_prefix(&format!("{}: ", dir.display())).unwrap_or(&text).to_string();
+        // Every setting having diverged is the search's result, which a resume would only replay.
+        let reason =
+            if matches!(e, Error::Failed(_)) { text } else { format!("{text} (resume it once that is fixed)") };
+        mark_failed(dir, &reason)
+    })?;
+    drop(lock);
+    Ok(ending)
+}
+
+/// Records in `state.json` that the run failed and why; a failure to write it (the disk that
+/// failed the run) leaves the error being reported as the one the user sees.
+fn mark_failed(dir: &Path, reason: &str) {
+    let path = dir.join("state.json");
+    if let Ok(mut state) = read_json::<RunState>(&path) {
+        state.state = Phase::Failed;
+        state.reason = reason.to_string();
+        state.eta_seconds = None;
+        state.updated = store::now_utc().1;
+        let _ = write_json(&path, &state);
+    }
+}
+
+/// The generations, then the validation a finished search's spec asks for.
+fn run_to_end(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Ending> {
+    let ending = run_generations(dir, spec, exec, budget, quiet)?;
     if matches!(ending, Ending::Finished(_)) {
         let state: RunState = read_json(&dir.join("state.json"))?;
         if state.best_fitness.is_none() {
-            // Every individual scored −∞: the records say so, and the command fails (exit 1).
+            // Every individual scored −∞: the records say so, no best.json was written, and the
+            // command fails (exit 1).
             return Err(Error::Failed(format!(
-                "{}: every setting diverged on some dataset (fitness −∞ throughout): no tuned config; \
-                 see the units' `diverged` reasons",
+                "{}: every setting diverged on some dataset (fitness −∞ throughout): no tuned config, so no \
+                 best.json; see the units' `diverged` reasons",
                 dir.display()
             )));
         }
@@ -154,7 +183,6 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
         }
         crate::report::search::write(dir)?;
     }
-    drop(lock);
     Ok(ending)
 }
 
@@ -422,6 +450,15 @@ fn write_outputs(
         .map(|(r, g)| serde_json::json!({"generation": g, "genes": r.genes, "decoded": r.decoded, "fitness": r.fitness, "scores": r.scores}))
         .collect();
     write_json(&dir.join("hall_of_fame.json"), &hof)?;
+    if best.fitness.is_none() {
+        // Every setting so far diverged: no tuned config, and nothing a consumer could take for
+        // one (a best.json of an earlier binary included).
+        let path = dir.join("best.json");
+        if store::something_at(&path) {
+            std::fs::remove_file(&path).map_err(|e| Error::io(&path, e))?;
+        }
+        return crate::report::search::write_fitness(dir, spec, records);
+    }
     // Keep a validation of this same fitness winner (a resumed or re-reported search), and the
     // setting it selected.
     let validation = super::validate::load(dir).filter(|v| v.fitness_winner() == best.setting);

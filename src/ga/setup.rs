@@ -179,6 +179,17 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
     let mut spec = Spec::from_value(value.clone(), &origin).map_err(after)?;
     let env = spec.env.env().name().to_string();
     if !o.seed_config.is_empty() {
+        // The flags' count is the flags' fault, not the spec file's.
+        let population = spec.search.ga.population;
+        if o.seed_config.len() > population {
+            return Err(Error::invalid(
+                "--seed-config",
+                format!("given {} times", o.seed_config.len()),
+                format!(
+                    "at most search.ga.population = {population} times (each seeds one individual of generation 0)"
+                ),
+            ));
+        }
         // Encoded on the gene grid of the spec as resolved, then validated with it.
         let seeded = seed_chromosomes(&o.seed_config, &env, &spec.search.genes)?;
         value["search"]["seeded"] = serde_json::json!(seeded);

@@ -23,7 +23,8 @@ pub fn line(dir: &Path) -> Result<String> {
         Phase::Running if !RunLock::is_held(dir) => Phase::Interrupted,
         s => s,
     };
-    let best = st.best.map_or("—".into(), |b| {
+    // The best setting of a search in which every setting diverged is none.
+    let best = st.best.filter(|_| st.best_fitness.is_some()).map_or("—".into(), |b| {
         format!(
             "{} δ_min {} patience {}",
             serde_json::to_value(b.activation).unwrap_or_default().as_str().unwrap_or("?"),
@@ -63,8 +64,10 @@ pub fn line(dir: &Path) -> Result<String> {
         };
         if own.is_empty() { String::new() } else { format!("{own}{race}{other})") }
     });
+    // A failed run says why (every setting diverged, a full disk) and that it resumes.
+    let failed = if state == Phase::Failed { format!("  failed: {}", st.reason) } else { String::new() };
     Ok(format!(
-        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}{}",
+        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}{}{}",
         env,
         state.name(),
         st.generation,
@@ -74,6 +77,7 @@ pub fn line(dir: &Path) -> Result<String> {
         best,
         dir.display(),
         timing,
+        failed,
         problems(dir).iter().map(|p| format!("  ! {p}")).collect::<String>()
     ))
 }

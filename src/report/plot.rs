@@ -51,6 +51,34 @@ pub(crate) fn color(i: usize) -> RGBColor {
     P[i % P.len()]
 }
 
+/// A writer that keeps the first error of the writer under it: the PNG encoder turns I/O errors
+/// into text of kind `Other`, and the kind decides the exit code (a full disk is 1, not 2).
+struct Watched<'a, W: std::io::Write> {
+    inner: &'a mut W,
+    first: Option<std::io::Error>,
+}
+
+impl<W: std::io::Write> Watched<'_, W> {
+    fn keep(&mut self, e: std::io::Error) -> std::io::Error {
+        if self.first.is_none() {
+            self.first = Some(match e.raw_os_error() {
+                Some(code) => std::io::Error::from_raw_os_error(code),
+                None => std::io::Error::new(e.kind(), e.to_string()),
+            });
+        }
+        e
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for Watched<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.inner.write(buf).map_err(|e| self.keep(e))
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush().map_err(|e| self.keep(e))
+    }
+}
+
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::File { path: path.to_path_buf(), message: format!("plotting failed: {e}") }
 }
@@ -75,13 +103,32 @@ pub(crate) fn render_sized(
     let png = base.with_extension("png");
     let tmp =
         base.with_file_name(format!(".{}.tmp.png", base.file_name().map_or("plot".into(), |n| n.to_string_lossy())));
+    // Drawn in memory and written by us, not by the backend: its file errors print as a debug
+    // dump and leave the temporary file behind, where ours name the file, keep the OS's error (a
+    // full disk is exit 1) and remove it.
+    let mut pixels = vec![0u8; size.0 as usize * size.1 as usize * 3];
     {
-        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut pixels, size).into_drawing_area();
         root.fill(&WHITE).map_err(|e| plot_err(&png, e))?;
         draw(&root)?;
         root.present().map_err(|e| plot_err(&png, e))?;
     }
-    std::fs::rename(&tmp, &png).map_err(|e| Error::io(&png, e))?;
+    crate::store::write_atomic_via(&png, &tmp, |w| {
+        use image::ImageEncoder;
+        let mut watched = Watched { inner: w, first: None };
+        let encoded = image::codecs::png::PngEncoder::new(&mut watched).write_image(
+            &pixels,
+            size.0,
+            size.1,
+            image::ColorType::Rgb8,
+        );
+        match (encoded, watched.first) {
+            (Ok(()), _) => Ok(()),
+            (Err(_), Some(io)) => Err(io),
+            (Err(image::ImageError::IoError(e)), None) => Err(e),
+            (Err(e), None) => Err(std::io::Error::other(e.to_string())),
+        }
+    })?;
     let svg_path = base.with_extension("svg");
     let mut svg = String::new();
     {

@@ -87,14 +87,17 @@ fn costs(dir: &Path, spec: &Spec, records: &[GenerationRecord]) -> Result<Vec<Co
                     Err(problem) => return Err(refuse(problem)),
                 };
                 if unit.score.map(f64::to_bits) != recorded.map(f64::to_bits) {
+                    // Scores as written in the files: the shortest round-trip form, or null (diverged).
+                    let score = |v: Option<f64>| v.map_or("null (diverged)".to_string(), |x| format!("{x:?}"));
                     return Err(Error::File {
                         path: dir.join("generations.jsonl"),
                         message: format!(
-                            "generation {} individual {} dataset {d} records score {recorded:?}, but {} holds {:?}",
+                            "generation {} individual {} dataset {d} records score {}, but {} holds {}",
                             r.generation,
                             ind.index,
+                            score(*recorded),
                             ev.unit_path(&id).display(),
-                            unit.score
+                            score(unit.score)
                         ),
                     });
                 }
@@ -134,6 +137,7 @@ fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
                     st.units_done, st.reason
                 ),
                 Phase::Running => format!("Running, after {gens}. Wall time so far {wall}."),
+                Phase::Failed => format!("Failed after {gens}: {}. Wall time {wall}.", st.reason),
             }
         }
         None => format!("{gens}; no state.json."),

@@ -41,7 +41,7 @@ impl Data {
             for (f, &v) in row.iter().enumerate() {
                 if v.abs() > f32::MAX as f64 {
                     return Err(Error::Data(format!(
-                        "input {v} at row {i}, column {f} is too large for Extra-Trees (|x| ≤ {:e})",
+                        "input {v:.3e} at row {i}, column {f} is too large for Extra-Trees (|x| ≤ {:e})",
                         f32::MAX
                     )));
                 }

@@ -206,18 +206,6 @@ impl SearchSpec {
         limits::within("ga.population", self.ga.population, 2, POPULATION)?;
         limits::within("stop.generations", self.stop.generations, 1, GENERATIONS)?;
         self.network.check().map_err(|e| e.within("network"))?;
-        // A fraction that holds out no row of even the largest dataset possible would fail at the
-        // first fit, after the run directory exists, as "bad data" naming no field.
-        let most = self.episodes.saturating_mul(horizon);
-        let f = self.network.validation_fraction;
-        ensure(
-            ((most as f64) * (1.0 - f)).floor() < most as f64,
-            "network.validation_fraction",
-            f,
-            &format!(
-                "too small: it holds out no row of {most} transitions (episodes × horizon, the most a dataset has)"
-            ),
-        )?;
         self.genes.validate().map_err(|e| e.within("genes"))?;
         let ga = &self.ga;
         for (f, v) in [("ga.elitism", ga.elitism), ("ga.parent_pool", ga.parent_pool)] {
@@ -314,9 +302,9 @@ pub struct Spec {
 
 /// Built-in copies of the shipped presets (overlays).
 const BUILTIN_PRESETS: [(&str, &str); 3] = [
-    ("quick", include_str!("../searches/presets/quick.json")),
-    ("prune", include_str!("../searches/presets/prune.json")),
-    ("thesis-text-ranges", include_str!("../searches/presets/thesis-text-ranges.json")),
+    ("quick", include_str!("../../searches/presets/quick.json")),
+    ("prune", include_str!("../../searches/presets/prune.json")),
+    ("thesis-text-ranges", include_str!("../../searches/presets/thesis-text-ranges.json")),
 ];
 
 /// Applies a JSON merge patch (RFC 7386): objects merge key by key, anything else replaces, `null`
@@ -374,9 +362,9 @@ pub fn load_preset(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
 
 /// Built-in copies of the shipped spec files, so the binary works from any directory.
 const BUILTIN: [(&str, &str); 3] = [
-    ("pendulum", include_str!("../searches/pendulum.json")),
-    ("cartpole", include_str!("../searches/cartpole.json")),
-    ("bicycle", include_str!("../searches/bicycle.json")),
+    ("pendulum", include_str!("../../searches/pendulum.json")),
+    ("cartpole", include_str!("../../searches/cartpole.json")),
+    ("bicycle", include_str!("../../searches/bicycle.json")),
 ];
 
 /// `search.validate` of a spec: how many of the hall of fame's best settings to re-score, on how
@@ -410,8 +398,9 @@ pub struct RaceRule {
 impl ValidateRule {
     /// Validates the rule; errors name the field.
     pub fn validate(&self) -> Result<()> {
-        ensure((1..=100).contains(&self.top), "validate.top", self.top, "must be in 1..=100")?;
-        ensure((1..=1000).contains(&self.datasets), "validate.datasets", self.datasets, "must be in 1..=1000")?;
+        use crate::limits::{VALIDATE_DATASETS, VALIDATE_TOP, within};
+        within("validate.top", self.top, 1, VALIDATE_TOP)?;
+        within("validate.datasets", self.datasets, 1, VALIDATE_DATASETS)?;
         if let Some(r) = &self.race {
             let d = self.datasets;
             ensure(
@@ -447,7 +436,8 @@ impl Spec {
         self.search.actions.check_for(&self.env, "search.actions")?;
         self.experiments.et.validate(horizon).map_err(|e| e.within("experiments.et"))?;
         self.experiments.mlp.validate(horizon).map_err(|e| e.within("experiments.mlp"))?;
-        self.search.validate(horizon).map_err(|e| e.within("search"))
+        self.search.validate(horizon).map_err(|e| e.within("search"))?;
+        checks::check(self)
     }
 
     /// Parses and validates spec text; `origin` names it in errors.
@@ -552,86 +542,8 @@ fn file_error(path: &Path, message: String) -> Error {
     Error::File { path: path.to_path_buf(), message }
 }
 
+mod checks;
+pub(crate) use checks::holdout;
+
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::env::NAMES;
-
-    #[test]
-    fn shipped_specs_load_and_match_the_spec_table() {
-        for name in NAMES {
-            let (s, _) = Spec::resolve(name).unwrap();
-            assert_eq!(s.env.env().name(), name);
-        }
-        let (b, _) = Spec::resolve("bicycle").unwrap();
-        assert_eq!(b.experiments.et.iterations, 20);
-        assert_eq!(b.experiments.et.learner.complexity(), Some(17));
-        assert_eq!(b.experiments.mlp.iterations, 80);
-        let (c, _) = Spec::resolve("cartpole").unwrap();
-        assert_eq!(c.experiments.et.actions, ActionEncoding::PerAction);
-        assert_eq!(c.experiments.et.iterations, 10);
-    }
-
-    #[test]
-    fn presets_overlay_the_spec() {
-        let (mut v, origin) = Spec::resolve_value("cartpole").unwrap();
-        let (patch, _) = load_preset("thesis-text-ranges").unwrap();
-        merge_patch(&mut v, &patch);
-        let s = Spec::from_value(v, &origin).unwrap();
-        assert_eq!(s.search.genes.b_delta, [3, 15]);
-        assert_eq!(s.search.genes.a_delta, [10, 99], "untouched fields keep their values");
-        let (mut v, _) = Spec::resolve_value("cartpole").unwrap();
-        merge_patch(&mut v, &load_preset("quick").unwrap().0);
-        let s = Spec::from_value(v, &origin).unwrap();
-        assert_eq!((s.search.ga.population, s.search.stop.generations, s.search.stop.stall_generations), (8, 2, None));
-        assert!(load_preset("nonesuch").unwrap_err().to_string().contains("quick"));
-    }
-
-    #[test]
-    fn errors_name_file_and_field() {
-        let origin = Path::new("my.json");
-        let base = BUILTIN[2].1;
-        let mut v = Spec::parse_value(base, origin).unwrap();
-        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!("many");
-        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
-        assert!(e.starts_with("my.json: field experiments.et.learner"), "{e}");
-        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(0);
-        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
-        assert!(e.contains("experiments.et.learner.n_trees = 0"), "{e}");
-        v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(5);
-        v["experiments"]["et"]["iteratons"] = serde_json::json!(5);
-        let e = Spec::from_value(v, origin).unwrap_err().to_string();
-        assert!(e.contains("iteratons"), "{e}");
-        let e = Spec::parse("{ not json", origin).unwrap_err().to_string();
-        assert!(e.starts_with("my.json: "), "{e}");
-    }
-
-    #[test]
-    fn claims_are_checked_with_their_path_and_do_not_change_the_results_hash() {
-        let origin = Path::new("my.json");
-        let base = Spec::parse_value(BUILTIN[0].1, origin).unwrap();
-        let (spec, _) = Spec::resolve("pendulum").unwrap();
-        assert_eq!(spec.experiments.mlp.claims.len(), 2, "complexity and sample claims");
-        let claims = |v: &mut serde_json::Value| v["experiments"]["mlp"]["claims"].as_array_mut().unwrap().clone();
-        let mut v = base.clone();
-        let mut c = claims(&mut v);
-        c[1]["share"] = serde_json::json!(1.5);
-        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
-        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
-        assert!(e.contains("experiments.mlp.claims[1].share = 1.5") && e.contains("(0, 1]"), "{e}");
-        c[1] = serde_json::json!({"rule": "mostly_worse", "share": 0.5, "statement": "x"});
-        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
-        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
-        assert!(e.contains("mostly_worse") && e.contains("mostly_better"), "{e}");
-        c[1] = serde_json::json!({"rule": "simpler_model", "steps": 5, "statement": "x"});
-        v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
-        let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
-        assert!(e.contains("experiments.mlp.claims") && e.contains("steps"), "{e}");
-        // Rewording or dropping a claim changes no number a search computes.
-        let mut v = base.clone();
-        v["experiments"]["et"]["claims"] = serde_json::json!([]);
-        let other = Spec::from_value(v, origin).unwrap();
-        assert_eq!(other.results_hash(), spec.results_hash());
-        assert_ne!(other.hash(), spec.hash());
-    }
-}
+mod tests;

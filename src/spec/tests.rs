@@ -1,0 +1,82 @@
+//! Tests of spec files: loading, presets, errors naming file and field, claims.
+
+use super::*;
+use crate::env::NAMES;
+
+#[test]
+fn shipped_specs_load_and_match_the_spec_table() {
+    for name in NAMES {
+        let (s, _) = Spec::resolve(name).unwrap();
+        assert_eq!(s.env.env().name(), name);
+    }
+    let (b, _) = Spec::resolve("bicycle").unwrap();
+    assert_eq!(b.experiments.et.iterations, 20);
+    assert_eq!(b.experiments.et.learner.complexity(), Some(17));
+    assert_eq!(b.experiments.mlp.iterations, 80);
+    let (c, _) = Spec::resolve("cartpole").unwrap();
+    assert_eq!(c.experiments.et.actions, ActionEncoding::PerAction);
+    assert_eq!(c.experiments.et.iterations, 10);
+}
+
+#[test]
+fn presets_overlay_the_spec() {
+    let (mut v, origin) = Spec::resolve_value("cartpole").unwrap();
+    let (patch, _) = load_preset("thesis-text-ranges").unwrap();
+    merge_patch(&mut v, &patch);
+    let s = Spec::from_value(v, &origin).unwrap();
+    assert_eq!(s.search.genes.b_delta, [3, 15]);
+    assert_eq!(s.search.genes.a_delta, [10, 99], "untouched fields keep their values");
+    let (mut v, _) = Spec::resolve_value("cartpole").unwrap();
+    merge_patch(&mut v, &load_preset("quick").unwrap().0);
+    let s = Spec::from_value(v, &origin).unwrap();
+    assert_eq!((s.search.ga.population, s.search.stop.generations, s.search.stop.stall_generations), (8, 2, None));
+    assert!(load_preset("nonesuch").unwrap_err().to_string().contains("quick"));
+}
+
+#[test]
+fn errors_name_file_and_field() {
+    let origin = Path::new("my.json");
+    let base = BUILTIN[2].1;
+    let mut v = Spec::parse_value(base, origin).unwrap();
+    v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!("many");
+    let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+    assert!(e.starts_with("my.json: field experiments.et.learner"), "{e}");
+    v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(0);
+    let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+    assert!(e.contains("experiments.et.learner.n_trees = 0"), "{e}");
+    v["experiments"]["et"]["learner"]["n_trees"] = serde_json::json!(5);
+    v["experiments"]["et"]["iteratons"] = serde_json::json!(5);
+    let e = Spec::from_value(v, origin).unwrap_err().to_string();
+    assert!(e.contains("iteratons"), "{e}");
+    let e = Spec::parse("{ not json", origin).unwrap_err().to_string();
+    assert!(e.starts_with("my.json: "), "{e}");
+}
+
+#[test]
+fn claims_are_checked_with_their_path_and_do_not_change_the_results_hash() {
+    let origin = Path::new("my.json");
+    let base = Spec::parse_value(BUILTIN[0].1, origin).unwrap();
+    let (spec, _) = Spec::resolve("pendulum").unwrap();
+    assert_eq!(spec.experiments.mlp.claims.len(), 2, "complexity and sample claims");
+    let claims = |v: &mut serde_json::Value| v["experiments"]["mlp"]["claims"].as_array_mut().unwrap().clone();
+    let mut v = base.clone();
+    let mut c = claims(&mut v);
+    c[1]["share"] = serde_json::json!(1.5);
+    v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+    let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+    assert!(e.contains("experiments.mlp.claims[1].share = 1.5") && e.contains("(0, 1]"), "{e}");
+    c[1] = serde_json::json!({"rule": "mostly_worse", "share": 0.5, "statement": "x"});
+    v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+    let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+    assert!(e.contains("mostly_worse") && e.contains("mostly_better"), "{e}");
+    c[1] = serde_json::json!({"rule": "simpler_model", "steps": 5, "statement": "x"});
+    v["experiments"]["mlp"]["claims"] = serde_json::json!(c);
+    let e = Spec::from_value(v.clone(), origin).unwrap_err().to_string();
+    assert!(e.contains("experiments.mlp.claims") && e.contains("steps"), "{e}");
+    // Rewording or dropping a claim changes no number a search computes.
+    let mut v = base.clone();
+    v["experiments"]["et"]["claims"] = serde_json::json!([]);
+    let other = Spec::from_value(v, origin).unwrap();
+    assert_eq!(other.results_hash(), spec.results_hash());
+    assert_ne!(other.hash(), spec.hash());
+}
