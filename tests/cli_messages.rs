@@ -3,7 +3,7 @@
 //! caps `validate` enforces written where the README documents it.
 
 mod common;
-use common::{bin, empty_dir, read};
+use common::{bin, empty_dir, read, split_info, varint, with_body};
 
 use std::path::Path;
 use std::process::Output;
@@ -32,42 +32,18 @@ fn tiny_search(dir: &Path) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
-/// FNV-1a, 64 bits: the model file's checksum of its body.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
-}
-
 /// The model file `bytes` with its info JSON (the body's first field, a postcard string: a varint
 /// length, then the text) edited by `edit`, its checksum made right again.
 fn with_info(bytes: &[u8], edit: impl Fn(&mut serde_json::Value)) -> Vec<u8> {
-    let body = &bytes[10..bytes.len() - 8];
-    let (mut len, mut at) = (0usize, 0);
-    loop {
-        len |= usize::from(body[at] & 0x7f) << (7 * at);
-        at += 1;
-        if body[at - 1] < 0x80 {
-            break;
-        }
-    }
-    let mut info: serde_json::Value = serde_json::from_slice(&body[at..at + len]).unwrap();
+    let (text, rest) = split_info(&bytes[10..bytes.len() - 8]);
+    let mut info: serde_json::Value = serde_json::from_str(&text).unwrap();
     edit(&mut info);
     let text = info.to_string();
     let mut new = Vec::new();
-    let mut n = text.len();
-    loop {
-        let b = (n & 0x7f) as u8;
-        n >>= 7;
-        new.push(if n > 0 { b | 0x80 } else { b });
-        if n == 0 {
-            break;
-        }
-    }
+    varint(text.len(), &mut new);
     new.extend_from_slice(text.as_bytes());
-    new.extend_from_slice(&body[at + len..]);
-    let mut out = bytes[..10].to_vec();
-    out.extend_from_slice(&new);
-    out.extend_from_slice(&fnv1a(&new).to_le_bytes());
-    out
+    new.extend_from_slice(rest);
+    with_body(bytes, &new)
 }
 
 #[test]

@@ -7,7 +7,7 @@
 //! a panic, an abort or a signal, a refusal in one line that names the file.
 
 mod common;
-use common::{bin, copy_dir, empty_dir, read};
+use common::{bin, copy_dir, empty_dir, read, split_info, varint, with_body};
 
 use serde_json::Value;
 use std::path::Path;
@@ -256,45 +256,6 @@ fn run_directories(work: &Path, rng: &mut Rng) -> (usize, usize) {
         let _ = std::fs::remove_dir_all(&dir);
     }
     (runs, refused)
-}
-
-/// FNV-1a, 64 bits: the model file's checksum of its body.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
-}
-
-/// A model file (8-byte magic, u16 version, postcard body, FNV-1a of the body) with its body
-/// replaced and the checksum made right, so a mutation reaches the checks past the checksum.
-fn with_body(bytes: &[u8], body: &[u8]) -> Vec<u8> {
-    let mut out = bytes[..10].to_vec();
-    out.extend_from_slice(body);
-    out.extend_from_slice(&fnv1a(body).to_le_bytes());
-    out
-}
-
-/// The body's first field, the info JSON (a postcard string: varint length, then the text): its
-/// text and the rest of the body.
-fn split_info(body: &[u8]) -> (String, &[u8]) {
-    let (mut len, mut at) = (0usize, 0);
-    loop {
-        len |= usize::from(body[at] & 0x7f) << (7 * at);
-        at += 1;
-        if body[at - 1] < 0x80 {
-            break;
-        }
-    }
-    (String::from_utf8(body[at..at + len].to_vec()).unwrap(), &body[at + len..])
-}
-
-fn varint(mut n: usize, out: &mut Vec<u8>) {
-    loop {
-        let b = (n & 0x7f) as u8;
-        n >>= 7;
-        out.push(if n > 0 { b | 0x80 } else { b });
-        if n == 0 {
-            return;
-        }
-    }
 }
 
 /// One mutation of a model file's bytes.
