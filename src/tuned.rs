@@ -85,11 +85,13 @@ const THESIS: [(&str, &str); 3] = [
 impl TunedConfig {
     /// Checks consistency and ranges; errors name the field.
     pub fn validate(&self) -> Result<()> {
+        // A gymnasium env's tuned config names its id, as its embedded spec does.
+        let gymnasium = self.spec.as_ref().is_some_and(|s| s.env.env().gymnasium().is_some_and(|g| g.id == self.env));
         ensure(
-            crate::env::NAMES.contains(&self.env.as_str()),
+            crate::env::NAMES.contains(&self.env.as_str()) || gymnasium,
             "env",
             &self.env,
-            "must be pendulum, cartpole or bicycle",
+            "must be pendulum, cartpole or bicycle, or the gymnasium env id of its spec",
         )?;
         ensure(
             self.delta_min.is_finite() && self.delta_min >= 0.0,
