@@ -214,3 +214,5 @@ pub fn settings(dir: &Path) -> std::collections::BTreeSet<String> {
         })
         .collect()
 }
+
+pub mod gym;
