@@ -319,7 +319,7 @@ def serve(inp, out):
             write_frame(out, {"ok": False, "kind": e.kind, "error": str(e)})
             continue
         except Exception as e:  # noqa: BLE001 - an env's own failure, reported to the tool
-            write_frame(out, {"ok": False, "kind": "env", "error": f"{op}: {one_line(e)}"})
+            write_frame(out, {"ok": False, "kind": "env", "error": f"the env raised {one_line(e)} in {op}"})
             continue
         reply = dict(reply, ok=True, busy=time.perf_counter() - t0)
         write_frame(out, reply, out_arrays)

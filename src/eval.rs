@@ -32,7 +32,7 @@ pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_see
     if let Some(g) = env.gymnasium() {
         let seeds: Vec<u64> = (0..proto.episodes).map(|e| reset_seed(eval_seed, e)).collect();
         let opts = g.eval.reset_options.as_ref();
-        let eps = gym_episodes(g, policy, &seeds, opts, proto.steps, None, "evaluation episode", &mut |_, _| {})?;
+        let eps = gym_episodes(g, policy, &seeds, opts, proto.steps, None, "evaluation", &mut |_, _| {})?;
         let n = eps.len() as f64;
         let (score, steps) = eps.iter().fold((0.0, 0.0), |(s, t), e| (s + e.score, t + e.steps as f64));
         return Ok(Score { score: score / n, steps: steps / n });

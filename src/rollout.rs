@@ -163,7 +163,7 @@ fn gym_chunk(
         max_width: FRAME_WIDTH,
         got: Vec::new(),
     });
-    let what = "rollout episode";
+    let what = "rollout";
     let eps = gym_episodes(g, &mut policy, &seeds, options, steps, frames.as_mut(), what, &mut observe)?;
     let mut got = frames.map(|f| f.got).unwrap_or_default();
     got.resize(seeds.len(), Vec::new());

@@ -160,7 +160,7 @@ pub struct LockStep<'a> {
 
 impl<'a> LockStep<'a> {
     /// Resets slot `i` with `seeds[i]` (and `options`); `render` opens the env for `rgb_array`
-    /// frames; `what` names the episodes in messages (e.g. `evaluation episodes`).
+    /// frames; `what` names the episodes in messages (`evaluation`, `rollout`).
     pub fn reset(
         cfg: &'a GymConfig,
         seeds: &[u64],
@@ -174,7 +174,7 @@ impl<'a> LockStep<'a> {
             &[seeds.len()],
             Data::U8(seeds.to_vec()),
         );
-        let reply = session.ask(&format!("the reset of {what}"), &req)?;
+        let reply = session.ask(&format!("the reset of the {what}"), &req)?;
         let d = cfg.obs_len();
         let obs = f8(&reply, "obs", seeds.len() * d, cfg, what)?.to_vec();
         let ls = LockStep { cfg, session, obs, seeds: seeds.to_vec(), steps: vec![0; seeds.len()], what: what.into() };
@@ -185,7 +185,7 @@ impl<'a> LockStep<'a> {
     }
 
     fn at(&self, slot: usize) -> String {
-        format!("at step {} of {} {slot} (reset seed {})", self.steps[slot], self.what, self.seeds[slot])
+        format!("at step {} of {} episode {slot} (reset seed {})", self.steps[slot], self.what, self.seeds[slot])
     }
 
     /// The current observation of a slot.
@@ -204,7 +204,7 @@ impl<'a> LockStep<'a> {
         let req = Frame::request("step", Value::Object(Map::new()))
             .with("slots", &[k], Data::U8(moves.iter().map(|&(s, _)| s as u64).collect()))
             .with("actions", &[k, a], Data::F8(actions));
-        let what = format!("a step of {}", self.what);
+        let what = format!("a step of the {}", self.what);
         let reply = self.session.ask(&what, &req)?;
         let obs = f8(&reply, "obs", k * d, self.cfg, &what)?;
         let reward = f8(&reply, "reward", k, self.cfg, &what)?;
@@ -229,7 +229,7 @@ impl<'a> LockStep<'a> {
             &[slots.len()],
             Data::U8(slots.iter().map(|&s| s as u64).collect()),
         );
-        let what = format!("the frames of {}", self.what);
+        let what = format!("the frames of the {}", self.what);
         let reply = self.session.ask(&what, &req)?;
         let frames = reply.array("frames").ok_or_else(|| broken(self.cfg, &what, "frames"))?;
         match (&frames.data, frames.shape.as_slice()) {
