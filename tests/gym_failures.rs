@@ -133,7 +133,7 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     let crashed = d.join("crashed");
-    let mut child = gym_bin(&py)
+    let child = gym_bin(&py)
         .arg("search")
         .arg(&s)
         .args(tiny_with(&slower))
