@@ -150,3 +150,23 @@ fn a_gymnasium_search_through_slurm_matches_local() {
     ok(&search(&py, &s, &real, &["--executor", "slurm", "--slurm-time", "00:10:00"]));
     same(&local, &real, "real slurm vs local");
 }
+
+#[test]
+fn a_batch_searches_a_gymnasium_env_then_compares_with_its_winner() {
+    let Some(py) = python() else { return };
+    let d = empty_dir("gymsearch", "batch");
+    let s = spec(&d);
+    let plan = serde_json::json!({"jobs": [
+        {"name": "search", "search": s, "presets": ["quick"], "episodes": 25, "datasets": 2, "iterations": 2,
+         "population": 4, "generations": 1},
+        {"name": "compare", "compare": s, "tuned": "from:search", "analysis": "iterations", "learner": "et",
+         "datasets": 2, "episodes": 25, "iterations": 2}
+    ]});
+    let p = d.join("plan.json");
+    std::fs::write(&p, plan.to_string()).unwrap();
+    ok(&gym_bin(&py).arg("batch").arg(&p).arg("--dry-run").output().unwrap());
+    let out = d.join("batch");
+    ok(&gym_bin(&py).arg("batch").arg(&p).arg("--out").arg(&out).output().unwrap());
+    let summary = read(out.join("summary.md"));
+    assert_eq!(summary.matches("| finished |").count(), 2, "{summary}");
+}
