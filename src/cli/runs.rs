@@ -195,6 +195,7 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
         Target::Learners => bench::learners(a.python.as_deref(), a.json)?,
         Target::Fqi => bench::fqi(a.python.as_deref(), a.json)?,
         Target::Dashboard => bench::dashboard(a.json)?,
+        Target::Gym => bench::gym(a.json)?,
         Target::Search => {
             anyhow::ensure!(
                 a.cap_seconds.is_finite() && a.cap_seconds > 0.0,

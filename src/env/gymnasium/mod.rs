@@ -16,7 +16,7 @@ mod episodes;
 mod wire;
 mod worker;
 
-pub use episodes::{Image, LockStep, RawEpisode, Stepped, collect, stats};
+pub use episodes::{BridgeStats, Image, LockStep, RawEpisode, Stepped, collect, stats};
 
 use super::{Env, EvalConfig, Outcome, ScoreKind};
 use crate::error::{Error, Result, ensure};
@@ -30,7 +30,9 @@ pub const MAX_OBSERVATION: usize = 1024;
 /// The most actions a greedy policy maximises over.
 pub const MAX_ACTIONS: usize = 1024;
 
-/// Settings of a gymnasium environment (`"name": "gymnasium"`).
+/// Settings of a gymnasium environment (`"name": "gymnasium"`). Values derived from them (the
+/// action table, the protocol the [`Env`] trait shows) are computed once: make a changed config
+/// through JSON, as specs are, not by assigning to a field of one already used.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GymConfig {
@@ -548,7 +550,12 @@ impl Env for GymConfig {
         unreachable!("a gymnasium env is stepped by its worker (gymnasium::LockStep)")
     }
     fn eval(&self) -> &EvalConfig {
-        &self.tables().eval
+        let e = &self.tables().eval;
+        assert!(
+            (e.episodes, e.steps, e.score) == (self.eval.episodes, self.eval.steps, self.eval.score),
+            "a gymnasium config was changed in place after use (make it through JSON)"
+        );
+        e
     }
     fn gymnasium(&self) -> Option<&GymConfig> {
         Some(self)
