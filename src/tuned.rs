@@ -165,7 +165,13 @@ impl TunedConfig {
             let (_, text) = THESIS
                 .iter()
                 .find(|(n, _)| *n == env)
-                .ok_or_else(|| Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") })?;
+                .ok_or_else(|| match crate::env::NAMES.contains(&env) {
+                    false if !env.is_empty() => Error::Usage(format!(
+                        "thesis: the thesis has no optimum for {env} (it tuned {} only); give a search's best.json",
+                        crate::env::NAMES.join(", ")
+                    )),
+                    _ => Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") },
+                })?;
             let origin = PathBuf::from(format!("<built-in searches/tuned/{env}.json>"));
             return Ok((Self::parse(text, &origin)?, origin));
         }
