@@ -162,10 +162,8 @@ impl TunedConfig {
             if crate::store::something_at(&local) {
                 return Ok((Self::load(&local)?, local));
             }
-            let (_, text) = THESIS
-                .iter()
-                .find(|(n, _)| *n == env)
-                .ok_or_else(|| match crate::env::NAMES.contains(&env) {
+            let (_, text) =
+                THESIS.iter().find(|(n, _)| *n == env).ok_or_else(|| match crate::env::NAMES.contains(&env) {
                     false if !env.is_empty() => Error::Usage(format!(
                         "thesis: the thesis has no optimum for {env} (it tuned {} only); give a search's best.json",
                         crate::env::NAMES.join(", ")

@@ -138,7 +138,9 @@ pub(super) fn envs(a: EnvsArgs) -> Result<Outcome> {
     }
     println!("gymnasium");
     println!("  any discrete-action gymnasium env (or a Box env with env.actions), stepped by a Python worker:");
-    println!("  named in a spec file, \"env\": {{\"name\": \"gymnasium\", \"id\": \"Acrobot-v1\", …}} (README, Gymnasium)");
+    println!(
+        "  named in a spec file, \"env\": {{\"name\": \"gymnasium\", \"id\": \"Acrobot-v1\", …}} (README, Gymnasium)"
+    );
     Ok(Outcome::Success)
 }
 
