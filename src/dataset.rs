@@ -5,7 +5,8 @@
 //! on the thread count, and a dataset of N episodes is a prefix of one of M > N episodes with the same
 //! seed (the sample analysis compares nested datasets).
 
-use crate::env::{Env, MAX_STATE};
+use crate::env::gymnasium::{self, RawEpisode};
+use crate::env::{Env, GymConfig, MAX_STATE};
 use crate::error::{Error, Result};
 use crate::rng::{self, stream};
 use crate::store::write_atomic;
@@ -111,6 +112,9 @@ pub fn collect(env: &dyn Env, episodes: usize, seed: u64) -> Result<Dataset> {
     if episodes == 0 {
         return Err(Error::invalid("episodes", 0, "must be ≥ 1"));
     }
+    if let Some(g) = env.gymnasium() {
+        return collect_gymnasium(g, episodes, seed);
+    }
     let parts: Vec<Dataset> = (0..episodes).into_par_iter().map(|e| episode(env, e, seed)).collect();
     let total = parts.iter().map(Dataset::len).sum();
     let mut out = Dataset::with_capacity(env.obs_dim(), total);
@@ -148,6 +152,47 @@ pub fn episode(env: &dyn Env, e: usize, seed: u64) -> Dataset {
         }
     }
     out
+}
+
+/// Steps per message to a gymnasium worker, about: a batch of episodes is one round trip.
+const GYM_BATCH_STEPS: usize = 20_000;
+
+/// [`collect`] for a gymnasium env: episode `e` draws its `reset` seed (the first word of its
+/// stream) and then its random actions from `(seed, "episode", e)`, as a built-in env draws its
+/// start and actions; the worker runs batches of episodes, in parallel on the threads, and the
+/// dataset does not depend on how they were batched.
+fn collect_gymnasium(g: &GymConfig, episodes: usize, seed: u64) -> Result<Dataset> {
+    let per = (GYM_BATCH_STEPS / g.horizon.max(1)).clamp(1, episodes);
+    let batches: Vec<Vec<RawEpisode>> = (0..episodes.div_ceil(per))
+        .into_par_iter()
+        .map(|b| {
+            let lo = b * per;
+            let batch: Vec<(u64, Vec<f64>)> = (lo..(lo + per).min(episodes))
+                .map(|e| {
+                    let mut rng = stream(seed, rng::purpose::EPISODE, &[e as u64]);
+                    let reset = rng::word(&mut rng);
+                    (reset, (0..g.horizon).map(|_| g.dataset_action(&mut rng)).collect())
+                })
+                .collect();
+            gymnasium::collect(g, lo, &batch)
+        })
+        .collect::<Result<_>>()?;
+    let d = g.obs_len();
+    let total = batches.iter().flatten().map(|e| e.rewards.len()).sum();
+    let mut out = Dataset::with_capacity(d, total);
+    for (e, ep) in batches.into_iter().flatten().enumerate() {
+        let t_end = ep.rewards.len();
+        for t in 0..t_end {
+            out.episode.push(e as u32);
+            out.step.push(t as u32);
+            out.state.extend_from_slice(&ep.obs[t * d..(t + 1) * d]);
+            out.action.push(ep.actions[t]);
+            out.reward.push(ep.rewards[t]);
+            out.next_state.extend_from_slice(&ep.obs[(t + 1) * d..(t + 2) * d]);
+            out.absorbing.push(ep.terminated && t + 1 == t_end);
+        }
+    }
+    Ok(out)
 }
 
 /// Which datasets: each role has its own stream (`dataset/<role>`), so a search never tunes on the

@@ -5,7 +5,9 @@
 //! `eval_seed` from (master seed, "eval", dataset index): FQI and B-FQI, every iteration and every
 //! chromosome are scored on the same episodes (paired comparisons).
 
-use crate::env::{Env, MAX_STATE, ScoreKind, draw_box};
+use crate::env::gymnasium::{Image, LockStep};
+use crate::env::{Env, GymConfig, MAX_STATE, ScoreKind, draw_box};
+use crate::error::Result;
 use crate::rng::{self, Rng, stream};
 use serde::{Deserialize, Serialize};
 
@@ -24,8 +26,17 @@ pub fn eval_seed(master: u64, index: usize) -> u64 {
 }
 
 /// Runs `policy` (observation → index into [`Env::actions`]) on the evaluation episodes of `env`.
-pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_seed: u64) -> Score {
+/// Fails only for a gymnasium env whose worker fails.
+pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_seed: u64) -> Result<Score> {
     let proto = env.eval();
+    if let Some(g) = env.gymnasium() {
+        let seeds: Vec<u64> = (0..proto.episodes).map(|e| reset_seed(eval_seed, e)).collect();
+        let opts = g.eval.reset_options.as_ref();
+        let eps = gym_episodes(g, policy, &seeds, opts, proto.steps, None, "evaluation", &mut |_, _| {})?;
+        let n = eps.len() as f64;
+        let (score, steps) = eps.iter().fold((0.0, 0.0), |(s, t), e| (s + e.score, t + e.steps as f64));
+        return Ok(Score { score: score / n, steps: steps / n });
+    }
     let (mut total_score, mut total_steps) = (0.0, 0.0);
     for e in 0..proto.episodes {
         let mut rng = stream(eval_seed, rng::purpose::EPISODE, &[e as u64]);
@@ -36,7 +47,118 @@ pub fn evaluate(env: &dyn Env, policy: &mut dyn FnMut(&[f64]) -> usize, eval_see
         total_steps += ep.steps as f64;
     }
     let n = proto.episodes as f64;
-    Score { score: total_score / n, steps: total_steps / n }
+    Ok(Score { score: total_score / n, steps: total_steps / n })
+}
+
+/// The `reset(seed=…)` of a gymnasium episode `e` under `seed`: the first word of the stream
+/// `(seed, "episode", e)`, which for a built-in env draws the start state.
+pub fn reset_seed(seed: u64, e: usize) -> u64 {
+    rng::word(&mut stream(seed, rng::purpose::EPISODE, &[e as u64]))
+}
+
+/// Which frames [`gym_episodes`] renders: of the first `episodes` slots, every `every`-th state
+/// and the last, at most `max_width` pixels wide; they land in `got[slot]` as (state index, frame).
+#[derive(Debug, Default)]
+pub struct Frames {
+    /// Slots drawn, from the first.
+    pub episodes: usize,
+    /// Every this many states.
+    pub every: usize,
+    /// Widest frame, pixels.
+    pub max_width: usize,
+    /// The frames of each drawn slot.
+    pub got: Vec<Vec<(usize, Image)>>,
+}
+
+/// Episodes of a gymnasium env in lock-step, one per seed, at most `max_steps` steps each, scored
+/// as [`episode`] scores: every round trip steps each running episode once. `observe` sees every
+/// step with the slot it belongs to (the observations are the states).
+#[allow(clippy::too_many_arguments)]
+pub fn gym_episodes(
+    g: &GymConfig,
+    policy: &mut dyn FnMut(&[f64]) -> usize,
+    seeds: &[u64],
+    options: Option<&serde_json::Map<String, serde_json::Value>>,
+    max_steps: usize,
+    mut frames: Option<&mut Frames>,
+    what: &str,
+    observe: &mut dyn FnMut(usize, StepView<'_>),
+) -> Result<Vec<Episode>> {
+    let n = seeds.len();
+    let (kind, actions, gamma) = (g.eval.score, Env::actions(g), g.gamma);
+    let mut ls = LockStep::reset(g, seeds, options, frames.is_some(), what)?;
+    let mut tally = vec![(0.0f64, 1.0f64, 0usize, false); n];
+    let drawn = frames.as_ref().map_or(0, |f| f.episodes.min(n));
+    if let Some(f) = frames.as_deref_mut() {
+        f.got = vec![Vec::new(); drawn];
+        let slots: Vec<usize> = (0..drawn).collect();
+        for (s, im) in slots.iter().zip(ls.render(&slots, f.max_width)?) {
+            f.got[*s].push((0, im));
+        }
+    }
+    let mut alive: Vec<usize> = (0..n).collect();
+    let (mut prev, mut chosen) = (Vec::new(), Vec::new());
+    for t in 0..max_steps {
+        if alive.is_empty() {
+            break;
+        }
+        prev.clear();
+        chosen.clear();
+        let mut moves = Vec::with_capacity(alive.len());
+        for &slot in &alive {
+            let o = ls.obs(slot);
+            prev.extend_from_slice(o);
+            let a = policy(o);
+            chosen.push(a);
+            moves.push((slot, actions[a]));
+        }
+        let out = ls.step(&moves)?;
+        let d = g.obs_len();
+        let mut ended = Vec::new();
+        for (i, (&slot, st)) in alive.iter().zip(&out).enumerate() {
+            let (sum, discount, steps, failed) = &mut tally[slot];
+            *sum += match kind {
+                ScoreKind::DiscountedReturn => *discount * st.reward,
+                _ => st.reward,
+            };
+            *discount *= gamma;
+            *steps += 1;
+            *failed = st.terminated;
+            let view = StepView {
+                t,
+                state: &prev[i * d..(i + 1) * d],
+                action: chosen[i],
+                reward: st.reward,
+                next: ls.obs(slot),
+                failed: st.terminated,
+            };
+            observe(slot, view);
+            if st.terminated || st.truncated || t + 1 == max_steps {
+                ended.push(slot);
+            }
+        }
+        if let Some(f) = frames.as_deref_mut() {
+            let every = f.every.max(1);
+            let slots: Vec<usize> =
+                alive.iter().copied().filter(|&s| s < drawn && ((t + 1) % every == 0 || ended.contains(&s))).collect();
+            if !slots.is_empty() {
+                for (s, im) in slots.iter().zip(ls.render(&slots, f.max_width)?) {
+                    f.got[*s].push((t + 1, im));
+                }
+            }
+        }
+        alive.retain(|s| !ended.contains(s));
+    }
+    Ok(tally
+        .into_iter()
+        .map(|(sum, _, steps, failed)| {
+            let score = match kind {
+                ScoreKind::MeanRewardPerStep => sum / steps.max(1) as f64,
+                ScoreKind::Return | ScoreKind::DiscountedReturn => sum,
+            };
+            Episode { score, steps, failed }
+        })
+        .collect())
 }
 
 /// One step of an episode, as [`episode`] shows it to its observer.
@@ -120,11 +242,11 @@ mod tests {
     fn bicycle_do_nothing_falls_because_of_the_noise() {
         let c = EnvConfig::by_name("bicycle").unwrap();
         // Action 4: no torque, no displacement. Without noise the bicycle would stay upright forever.
-        let s = evaluate(c.env(), &mut |_| 4, eval_seed(1, 0));
+        let s = evaluate(c.env(), &mut |_| 4, eval_seed(1, 0)).unwrap();
         assert!(s.steps < 5000.0, "fell after {} steps", s.steps);
         assert!(s.score < 0.0);
         let quiet = crate::env::BicycleConfig { noise: 0.0, ..Default::default() };
-        let s = evaluate(&quiet, &mut |_| 4, eval_seed(1, 0));
+        let s = evaluate(&quiet, &mut |_| 4, eval_seed(1, 0)).unwrap();
         assert_eq!(s.steps, 5000.0, "without noise nothing moves");
         assert_eq!(s.score, 0.0);
     }
@@ -135,20 +257,20 @@ mod tests {
         // Push toward the side the pole is falling to, with a little cart centring.
         let mut pd = |o: &[f64]| usize::from(o[2] + 0.5 * o[3] + 0.01 * o[0] + 0.05 * o[1] > 0.0);
         for i in 0..10 {
-            let s = evaluate(c.env(), &mut pd, eval_seed(3, i));
+            let s = evaluate(c.env(), &mut pd, eval_seed(3, i)).unwrap();
             assert_eq!(s.steps, 200.0);
             assert!(s.score > 190.0, "PD controller scored {}", s.score);
         }
         let mut r = rng::stream(0, "test", &[]);
         let mut random = |_: &[f64]| rng::below(&mut r, 2) as usize;
-        let s = evaluate(c.env(), &mut random, eval_seed(3, 0));
+        let s = evaluate(c.env(), &mut random, eval_seed(3, 0)).unwrap();
         assert!(s.score < 100.0, "random policy scored {}", s.score);
     }
 
     #[test]
     fn pendulum_scores_mean_reward_per_step() {
         let c = EnvConfig::by_name("pendulum").unwrap();
-        let s = evaluate(c.env(), &mut |_| 0, eval_seed(1, 0));
+        let s = evaluate(c.env(), &mut |_| 0, eval_seed(1, 0)).unwrap();
         assert_eq!(s.steps, 200.0);
         // Per-step cost is at most π² + 0.1·64 + 0.004 ≈ 16.3.
         assert!(s.score < 0.0 && s.score > -16.3, "{}", s.score);
@@ -157,9 +279,9 @@ mod tests {
     #[test]
     fn same_seed_same_episodes_for_any_policy_order() {
         let c = EnvConfig::by_name("cartpole").unwrap();
-        let a = evaluate(c.env(), &mut |o| usize::from(o[2] > 0.0), eval_seed(5, 2));
-        let _ = evaluate(c.env(), &mut |_| 0, eval_seed(5, 3));
-        let b = evaluate(c.env(), &mut |o| usize::from(o[2] > 0.0), eval_seed(5, 2));
+        let a = evaluate(c.env(), &mut |o| usize::from(o[2] > 0.0), eval_seed(5, 2)).unwrap();
+        let _ = evaluate(c.env(), &mut |_| 0, eval_seed(5, 3)).unwrap();
+        let b = evaluate(c.env(), &mut |o| usize::from(o[2] > 0.0), eval_seed(5, 2)).unwrap();
         assert_eq!(a, b);
     }
 }

@@ -191,8 +191,9 @@ impl<'a, L: Learner> Fqi<'a, L> {
     ///
     /// An episode is sequential, but a B-FQI step sums many members: with several, their Q values
     /// are computed in parallel into one buffer each and then added in member order, so the
-    /// policy is bit-identical to [`Fqi::q_values`] whatever the thread count.
-    pub fn evaluate(&self) -> Score {
+    /// policy is bit-identical to [`Fqi::q_values`] whatever the thread count. Fails only when a
+    /// gymnasium env's worker does.
+    pub fn evaluate(&self) -> Result<Score> {
         let na = self.enc.actions.len();
         let k = self.members.len();
         let mut q = vec![0.0; na];
@@ -284,7 +285,7 @@ impl<'a, L: Learner> Fqi<'a, L> {
         let t2 = Instant::now();
         let s = self.settings;
         let (score, steps) = if k.is_multiple_of(s.eval_every.max(1)) || k == s.iterations {
-            let sc = self.evaluate();
+            let sc = self.evaluate()?;
             (Some(sc.score), Some(sc.steps))
         } else {
             (None, None)
@@ -397,11 +398,11 @@ mod tests {
             assert!((ra.bellman_residual - rb.bellman_residual).abs() < 1e-12);
         }
         // The greedy policy walks right: 4 steps of −0.1, then +1.
-        assert!((fqi.evaluate().score - 0.6).abs() < 1e-12);
+        assert!((fqi.evaluate().unwrap().score - 0.6).abs() < 1e-12);
         assert_eq!(bfqi.members().len(), 10);
         // Ten members: two threads sum them in parallel, one thread in turn; same policy, same score.
         let pool = |n| rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
-        let (one, two) = (pool(1).install(|| bfqi.evaluate()), pool(2).install(|| bfqi.evaluate()));
+        let (one, two) = (pool(1).install(|| bfqi.evaluate()).unwrap(), pool(2).install(|| bfqi.evaluate()).unwrap());
         assert_eq!((one.score.to_bits(), one.steps), (two.score.to_bits(), two.steps));
         assert!((two.score - 0.6).abs() < 1e-12);
         assert_eq!(fqi.members().len(), 1);

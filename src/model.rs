@@ -356,7 +356,7 @@ mod tests {
                 back.q(o, &mut q);
                 argmax(&q)
             };
-            let s = evaluate(env, &mut policy, back.info.eval_seed);
+            let s = evaluate(env, &mut policy, back.info.eval_seed).unwrap();
             assert_eq!(Some(s.score.to_bits()), back.info.score.map(f64::to_bits), "{what}");
         }
     }

@@ -54,6 +54,12 @@ pub fn unit(rng: &mut Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
+/// The stream's next 64 bits as they are: a gymnasium episode's `reset(seed=…)`.
+#[inline]
+pub fn word(rng: &mut Rng) -> u64 {
+    rng.next_u64()
+}
+
 /// A uniform draw in `[lo, hi)`.
 #[inline]
 pub fn uniform(rng: &mut Rng, lo: f64, hi: f64) -> f64 {

@@ -6,8 +6,10 @@
 //! `(eval_seed, "episode", e)`, so with [`Start::Eval`] and a run's evaluation seed, episode `e` is
 //! exactly the one the run scored.
 
-use crate::env::{EnvConfig, MAX_STATE, draw_box};
-use crate::eval::{Episode, episode};
+use crate::env::gymnasium::Image;
+use crate::env::{EnvConfig, GymConfig, MAX_STATE, draw_box};
+use crate::error::{Error, Result};
+use crate::eval::{Episode, Frames, episode, gym_episodes, reset_seed};
 use crate::learn::actions::argmax;
 use crate::rng::{purpose, stream};
 use crate::stats::{Summary, summarize};
@@ -64,11 +66,32 @@ pub struct Trajectory {
     pub score: f64,
     /// Whether it ended in a failure.
     pub failed: bool,
+    /// A gymnasium env's own pictures of some states (state index, frame), from `render()`.
+    pub frames: Vec<(usize, Image)>,
 }
+
+/// What a rollout draws with a gymnasium env's `render()`: the first `episodes` episodes, at
+/// most `frames` frames each.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Draw {
+    /// Episodes drawn, from the first.
+    pub episodes: usize,
+    /// Frames per episode at most.
+    pub frames: usize,
+}
+
+/// Widest gymnasium frame kept (pixels): every n-th pixel of the env's picture.
+const FRAME_WIDTH: usize = 320;
+
+/// Episodes stepped together by one gymnasium worker in a rollout.
+const GYM_SLOTS: usize = 64;
 
 /// Runs `episodes` episodes of the greedy policy of `q` (observation → Q of every action) from
 /// `start`, at most `steps` steps each, keeping every step when `record` is set. Episodes run in
-/// parallel; each has its own streams, so the results do not depend on the thread count.
+/// parallel; each has its own streams, so the results do not depend on the thread count. With a
+/// gymnasium env that renders `rgb_array`, `draw` says which episodes keep frames. Fails only
+/// when a gymnasium env's worker does (or `start` is `zero` for one).
+#[allow(clippy::too_many_arguments)]
 pub fn run(
     env_cfg: &EnvConfig,
     q: &(dyn Fn(&[f64], &mut [f64]) + Sync),
@@ -77,8 +100,90 @@ pub fn run(
     start: Start,
     steps: usize,
     record: bool,
-) -> Vec<(Episode, Option<Trajectory>)> {
-    (0..episodes).into_par_iter().map(|e| one(env_cfg, q, eval_seed, e, start, steps, record)).collect()
+    draw: Option<Draw>,
+) -> Result<Vec<(Episode, Option<Trajectory>)>> {
+    if let EnvConfig::Gymnasium(g) = env_cfg {
+        let opts = match start {
+            Start::Eval => g.eval.reset_options.as_ref(),
+            Start::Random => g.reset_options.as_ref(),
+            Start::Zero => {
+                return Err(Error::Usage(format!(
+                    "--start zero: gymnasium env {} starts where its reset() puts it; use --start eval \
+                     (env.eval.reset_options) or random (env.reset_options)",
+                    g.id
+                )));
+            }
+        };
+        let draw = draw.filter(|_| record && g.probed.as_ref().is_some_and(|p| p.rgb_array));
+        let chunks: Vec<usize> = (0..episodes.div_ceil(GYM_SLOTS)).collect();
+        let parts = chunks
+            .into_par_iter()
+            .map(|c| {
+                let lo = c * GYM_SLOTS;
+                gym_chunk(g, q, eval_seed, lo..(lo + GYM_SLOTS).min(episodes), opts, steps, record, draw)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        return Ok(parts.into_iter().flatten().collect());
+    }
+    Ok((0..episodes).into_par_iter().map(|e| one(env_cfg, q, eval_seed, e, start, steps, record)).collect())
+}
+
+/// Episodes `range` of a gymnasium rollout, in lock-step in one worker.
+#[allow(clippy::too_many_arguments)]
+fn gym_chunk(
+    g: &GymConfig,
+    q: &(dyn Fn(&[f64], &mut [f64]) + Sync),
+    eval_seed: u64,
+    range: std::ops::Range<usize>,
+    options: Option<&serde_json::Map<String, serde_json::Value>>,
+    steps: usize,
+    record: bool,
+    draw: Option<Draw>,
+) -> Result<Vec<(Episode, Option<Trajectory>)>> {
+    let na = crate::env::Env::actions(g).len();
+    let seeds: Vec<u64> = range.clone().map(|e| reset_seed(eval_seed, e)).collect();
+    let mut qv = vec![0.0; na];
+    let mut policy = |obs: &[f64]| {
+        q(obs, &mut qv);
+        argmax(&qv)
+    };
+    let mut kept: Vec<Vec<Step>> = vec![Vec::new(); seeds.len()];
+    let mut last: Vec<Vec<f64>> = vec![Vec::new(); seeds.len()];
+    let mut observe = |slot: usize, v: crate::eval::StepView<'_>| {
+        if record {
+            let mut qs = vec![0.0; na];
+            q(v.state, &mut qs);
+            kept[slot].push(Step { state: v.state.to_vec(), action: v.action, reward: v.reward, q: qs });
+            last[slot] = v.next.to_vec();
+        }
+    };
+    let mut frames = draw.filter(|d| range.start < d.episodes).map(|d| Frames {
+        episodes: d.episodes - range.start,
+        every: steps.div_ceil(d.frames.max(2) - 1).max(1),
+        max_width: FRAME_WIDTH,
+        got: Vec::new(),
+    });
+    let what = "rollout";
+    let eps = gym_episodes(g, &mut policy, &seeds, options, steps, frames.as_mut(), what, &mut observe)?;
+    let mut got = frames.map(|f| f.got).unwrap_or_default();
+    got.resize(seeds.len(), Vec::new());
+    Ok(eps
+        .into_iter()
+        .zip(kept.into_iter().zip(last))
+        .zip(got)
+        .enumerate()
+        .map(|(i, ((ep, (steps, last)), frames))| {
+            let traj = record.then(|| Trajectory {
+                episode: range.start + i,
+                steps,
+                last,
+                score: ep.score,
+                failed: ep.failed,
+                frames,
+            });
+            (ep, traj)
+        })
+        .collect())
 }
 
 fn one(
@@ -117,7 +222,7 @@ fn one(
         for (st, qrow) in kept.iter_mut().zip(qs.chunks_exact(na)) {
             st.q = qrow.to_vec();
         }
-        Trajectory { episode: e, steps: kept, last, score: ep.score, failed: ep.failed }
+        Trajectory { episode: e, steps: kept, last, score: ep.score, failed: ep.failed, frames: Vec::new() }
     });
     (ep, traj)
 }
@@ -156,7 +261,7 @@ pub fn csv(env: &EnvConfig, trajectories: &[Trajectory]) -> String {
     let names = state_names(env);
     let actions = env.env().actions();
     let mut s = String::from("episode,step,time");
-    for n in names {
+    for n in &names {
         s.push_str(&format!(",{n}"));
     }
     s.push_str(",action,action_value,reward");
@@ -204,16 +309,21 @@ pub fn dt(env: &EnvConfig) -> f64 {
         EnvConfig::Pendulum(c) => c.dt,
         EnvConfig::Cartpole(c) => c.tau,
         EnvConfig::Bicycle(c) => c.dt,
+        // Steps when the env has no `dt` (or `tau`).
+        EnvConfig::Gymnasium(c) => c.probed.as_ref().and_then(|p| p.dt).unwrap_or(1.0),
     }
 }
 
 /// Names of the hidden-state variables, as plots and CSV headers show them.
-pub fn state_names(env: &EnvConfig) -> &'static [&'static str] {
-    match env {
+/// (A gymnasium env's are its observation's values, `obs_0`, `obs_1`, ….)
+pub fn state_names(env: &EnvConfig) -> Vec<String> {
+    let fixed: &[&str] = match env {
         EnvConfig::Pendulum(_) => &["theta", "theta_dot"],
         EnvConfig::Cartpole(_) => &["x", "x_dot", "theta", "theta_dot"],
         EnvConfig::Bicycle(_) => &["omega", "omega_dot", "theta", "theta_dot", "psi"],
-    }
+        EnvConfig::Gymnasium(c) => return (0..c.obs_len()).map(|i| format!("obs_{i}")).collect(),
+    };
+    fixed.iter().map(|s| s.to_string()).collect()
 }
 
 #[cfg(test)]
@@ -244,14 +354,14 @@ mod tests {
             };
             let seed = eval_seed(7, 1);
             let protocol = c.env().eval();
-            let eps = run(&c, &q, seed, protocol.episodes, Start::Eval, protocol.steps, true);
+            let eps = run(&c, &q, seed, protocol.episodes, Start::Eval, protocol.steps, true, None).unwrap();
             let mean = eps.iter().map(|(e, _)| e.score).sum::<f64>() / eps.len() as f64;
             let mut policy = |o: &[f64]| {
                 let mut v = vec![0.0; na];
                 q(o, &mut v);
                 argmax(&v)
             };
-            let s = evaluate(c.env(), &mut policy, seed);
+            let s = evaluate(c.env(), &mut policy, seed).unwrap();
             assert_eq!(mean.to_bits(), s.score.to_bits(), "{name}");
             for (e, t) in &eps {
                 let t = t.as_ref().unwrap();

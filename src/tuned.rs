@@ -85,11 +85,13 @@ const THESIS: [(&str, &str); 3] = [
 impl TunedConfig {
     /// Checks consistency and ranges; errors name the field.
     pub fn validate(&self) -> Result<()> {
+        // A gymnasium env's tuned config names its id, as its embedded spec does.
+        let gymnasium = self.spec.as_ref().is_some_and(|s| s.env.env().gymnasium().is_some_and(|g| g.id == self.env));
         ensure(
-            crate::env::NAMES.contains(&self.env.as_str()),
+            crate::env::NAMES.contains(&self.env.as_str()) || gymnasium,
             "env",
             &self.env,
-            "must be pendulum, cartpole or bicycle",
+            "must be pendulum, cartpole or bicycle, or the gymnasium env id of its spec",
         )?;
         ensure(
             self.delta_min.is_finite() && self.delta_min >= 0.0,
@@ -175,10 +177,14 @@ impl TunedConfig {
             if crate::store::something_at(&local) {
                 return Ok((Self::load(&local)?, local));
             }
-            let (_, text) = THESIS
-                .iter()
-                .find(|(n, _)| *n == env)
-                .ok_or_else(|| Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") })?;
+            let (_, text) =
+                THESIS.iter().find(|(n, _)| *n == env).ok_or_else(|| match crate::env::NAMES.contains(&env) {
+                    false if !env.is_empty() => Error::Usage(format!(
+                        "thesis: the thesis has no optimum for {env} (it tuned {} only); give a search's best.json",
+                        crate::env::NAMES.join(", ")
+                    )),
+                    _ => Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") },
+                })?;
             let origin = PathBuf::from(format!("<built-in searches/tuned/{env}.json>"));
             return Ok((Self::parse(text, &origin)?, origin));
         }

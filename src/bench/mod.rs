@@ -6,7 +6,8 @@
 //!   chosen chromosomes, the kernels against the machine's FMA peak, and the projected wall time
 //!   of a whole search;
 //! - `bench dashboard` times the requests of a search page's first paint on the committed bicycle
-//!   search, and the memory serving them takes.
+//!   search, and the memory serving them takes;
+//! - `bench gym` times the gymnasium bridge against the built-in cart-pole on the same jobs.
 //!
 //! Given a Python (`--python PY`) with scikit-learn, or Keras 3 and JAX, each also runs the
 //! reference a researcher would otherwise use on the same data in the same run, for ratios that a
@@ -15,11 +16,13 @@
 
 mod dashboard;
 mod fqi;
+mod gym;
 mod learners;
 mod search;
 
 pub use dashboard::dashboard;
 pub use fqi::fqi;
+pub use gym::gym;
 pub use learners::learners;
 pub use search::{SearchBench, search};
 
@@ -41,6 +44,9 @@ pub enum Target {
     Search,
     /// The dashboard's first paint of the committed bicycle search, and its memory.
     Dashboard,
+    /// The gymnasium bridge (CartPole-v1) against the built-in cart-pole: collection, evaluation,
+    /// a search unit and its share in Python.
+    Gym,
 }
 
 /// The reference scripts, by file name (the copies in `scripts/`).

@@ -230,7 +230,8 @@ pub(super) fn evaluate(a: EvaluateArgs) -> Result<Outcome> {
     let m = crate::model::load(&a.model)?;
     let steps = a.steps.unwrap_or(m.info.env.env().eval().steps);
     anyhow::ensure!((1..=ms).contains(&steps), "invalid --steps = {steps}: must be in 1..={ms}");
-    let eps = crate::rollout::run(&m.info.env, &|o, q| m.q(o, q), m.info.eval_seed, a.episodes, a.start, steps, false);
+    let q = |o: &[f64], q: &mut [f64]| m.q(o, q);
+    let eps = crate::rollout::run(&m.info.env, &q, m.info.eval_seed, a.episodes, a.start, steps, false, None)?;
     let eps: Vec<crate::eval::Episode> = eps.into_iter().map(|(e, _)| e).collect();
     let r = crate::rollout::robustness(a.start, &eps).expect("at least one episode");
     if a.json {

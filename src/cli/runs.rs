@@ -4,6 +4,7 @@ use super::Outcome;
 use crate::dataset::{self, Role, dataset_seed};
 use crate::env::{EnvConfig, NAMES};
 use crate::experiment::{self, RunOverrides};
+use crate::spec::Spec;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::PathBuf;
@@ -11,7 +12,7 @@ use std::path::PathBuf;
 /// `bfqi-ga dataset`.
 #[derive(Debug, Args)]
 pub struct DatasetArgs {
-    /// Environment: pendulum, cartpole or bicycle.
+    /// Environment: pendulum, cartpole or bicycle, or a spec file (e.g. of a gymnasium env).
     pub env: String,
     /// Number of random-policy episodes.
     #[arg(long)]
@@ -93,8 +94,9 @@ pub struct WorkerArgs {
 }
 
 pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
-    let env = EnvConfig::by_name(&a.env)?;
+    let env = if NAMES.contains(&a.env.as_str()) { EnvConfig::by_name(&a.env)? } else { Spec::resolve(&a.env)?.0.env };
     anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    crate::limits::episodes("--episodes", a.episodes, env.env().horizon())?;
     let d = dataset::collect(env.env(), a.episodes, dataset_seed(a.seed, a.role, a.index))?;
     d.write_csv(&a.out)?;
     eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
@@ -134,6 +136,11 @@ pub(super) fn envs(a: EnvsArgs) -> Result<Outcome> {
             .collect();
         println!("  settings: {}", settings.join(" "));
     }
+    println!("gymnasium");
+    println!("  any discrete-action gymnasium env (or a Box env with env.actions), stepped by a Python worker:");
+    println!(
+        "  named in a spec file, \"env\": {{\"name\": \"gymnasium\", \"id\": \"Acrobot-v1\", …}} (README, Gymnasium)"
+    );
     Ok(Outcome::Success)
 }
 
@@ -193,6 +200,7 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
         Target::Learners => bench::learners(a.python.as_deref(), a.json)?,
         Target::Fqi => bench::fqi(a.python.as_deref(), a.json)?,
         Target::Dashboard => bench::dashboard(a.json)?,
+        Target::Gym => bench::gym(a.json)?,
         Target::Search => {
             anyhow::ensure!(
                 a.cap_seconds.is_finite() && a.cap_seconds > 0.0,

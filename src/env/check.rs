@@ -66,6 +66,8 @@ fn title(cfg: &EnvConfig) -> &'static str {
         EnvConfig::Pendulum(_) => "pendulum",
         EnvConfig::Cartpole(_) => "cart-pole",
         EnvConfig::Bicycle(_) => "bicycle",
+        // Never checked here: a gymnasium env's dynamics are its worker's (see `EnvConfig::validate`).
+        EnvConfig::Gymnasium(_) => "gymnasium",
     }
 }
 

@@ -7,11 +7,13 @@
 mod bicycle;
 mod cartpole;
 mod check;
+pub mod gymnasium;
 mod pendulum;
 
 pub use bicycle::BicycleConfig;
 pub use cartpole::CartPoleConfig;
 pub use check::LEARNER_MAX;
+pub use gymnasium::GymConfig;
 pub use pendulum::PendulumConfig;
 
 use crate::error::{Error, Result, ensure};
@@ -113,8 +115,8 @@ pub(crate) fn sign(x: f64) -> f64 {
 /// a torque for the pendulum, an index for cart-pole and bicycle. [`Env::actions`] is the discrete
 /// set the learner maximises over.
 pub trait Env: Send + Sync {
-    /// The name used on the command line.
-    fn name(&self) -> &'static str;
+    /// The name used on the command line (a gymnasium env's id).
+    fn name(&self) -> &str;
     /// Hidden-state dimension.
     fn state_dim(&self) -> usize;
     /// Observation dimension (what a learner sees).
@@ -135,10 +137,18 @@ pub trait Env: Send + Sync {
     fn step(&self, state: &[f64], action: f64, rng: &mut Rng, next: &mut [f64]) -> Outcome;
     /// The evaluation protocol.
     fn eval(&self) -> &EvalConfig;
+    /// A gymnasium env, stepped by its worker: datasets, evaluations and rollouts go through
+    /// [`gymnasium`] instead of [`Env::step`]. `None` for the built-in simulators.
+    fn gymnasium(&self) -> Option<&GymConfig> {
+        None
+    }
 }
 
 /// The names of the environments, in the order `bfqi-ga envs` lists them.
 pub const NAMES: [&str; 3] = ["pendulum", "cartpole", "bicycle"];
+
+/// The values `env.name` takes in a spec: the built-in environments and `gymnasium`.
+const TAGS: [&str; 4] = ["pendulum", "cartpole", "bicycle", "gymnasium"];
 
 /// An environment with its settings; the serialised form is `{"name": "...", ...settings}`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -150,6 +160,8 @@ pub enum EnvConfig {
     Cartpole(CartPoleConfig),
     /// Bicycle balancing (Ernst et al. 2005).
     Bicycle(BicycleConfig),
+    /// Any discrete-action gymnasium environment, stepped by a Python worker.
+    Gymnasium(Box<GymConfig>),
 }
 
 impl<'de> Deserialize<'de> for EnvConfig {
@@ -159,7 +171,8 @@ impl<'de> Deserialize<'de> for EnvConfig {
             "pendulum" => crate::error::tagged(rest).map(EnvConfig::Pendulum),
             "cartpole" => crate::error::tagged(rest).map(EnvConfig::Cartpole),
             "bicycle" => crate::error::tagged(rest).map(EnvConfig::Bicycle),
-            other => Err(crate::error::unknown_tag("name", other, &NAMES)),
+            "gymnasium" => crate::error::tagged(rest).map(|g| EnvConfig::Gymnasium(Box::new(g))),
+            other => Err(crate::error::unknown_tag("name", other, &TAGS)),
         }
     }
 }
@@ -171,6 +184,11 @@ impl EnvConfig {
             "pendulum" => Ok(EnvConfig::Pendulum(PendulumConfig::default())),
             "cartpole" => Ok(EnvConfig::Cartpole(CartPoleConfig::default())),
             "bicycle" => Ok(EnvConfig::Bicycle(BicycleConfig::default())),
+            "gymnasium" => Err(Error::Usage(
+                "a gymnasium env is named in a spec file: \"env\": {\"name\": \"gymnasium\", \"id\": \"CartPole-v1\", …} \
+                 (see the README's Gymnasium section); give the spec file's path"
+                    .into(),
+            )),
             _ => Err(Error::UnknownEnv { name: name.to_string(), valid: NAMES.join(", ") }),
         }
     }
@@ -181,7 +199,27 @@ impl EnvConfig {
             EnvConfig::Pendulum(c) => c,
             EnvConfig::Cartpole(c) => c,
             EnvConfig::Bicycle(c) => c,
+            EnvConfig::Gymnasium(c) => c.as_ref(),
         }
+    }
+
+    /// Completes the settings that need the environment itself: a gymnasium env's spaces, asked
+    /// of a worker the first time a spec names it (`env.probed`). Nothing for the built-in ones.
+    pub fn resolve(&mut self) -> Result<()> {
+        match self {
+            EnvConfig::Gymnasium(c) => c.resolve(),
+            _ => Ok(()),
+        }
+    }
+
+    /// The settings as results hashes see them: without those that decide no result (a
+    /// gymnasium env's Python and timeout).
+    pub fn for_hash(&self) -> EnvConfig {
+        let mut c = self.clone();
+        if let EnvConfig::Gymnasium(g) = &mut c {
+            g.for_hash();
+        }
+        c
     }
 
     /// Checks every setting; the error names the field (prefixed `env.`).
@@ -190,6 +228,8 @@ impl EnvConfig {
             EnvConfig::Pendulum(c) => c.validate(),
             EnvConfig::Cartpole(c) => c.validate(),
             EnvConfig::Bicycle(c) => c.validate(),
+            // Its dynamics are the worker's: checked (finite) on every step it returns.
+            EnvConfig::Gymnasium(c) => return c.validate().map_err(|e| e.within("env")),
         };
         r.and_then(|_| self.env().eval().validate(self.env().state_dim())).map_err(|e| e.within("env"))?;
         self.check_dynamics()

@@ -135,6 +135,11 @@ impl<'a> Chains<'a> {
             }
             let Some(id) = self.take() else { return };
             if let Err(e) = self.units.compute(&id) {
+                // A run that failed (a gymnasium worker that crashed, say) says in which unit.
+                let e = match e {
+                    Error::Failed(m) => Error::Failed(format!("unit {id}: {m}")),
+                    other => other,
+                };
                 self.first_error.lock().expect("error slot").get_or_insert(e);
                 return self.leave();
             }

@@ -444,11 +444,13 @@ impl Validation {
         self.thesis_entry(env)?.fitness
     }
 
-    /// The validation as a Markdown section of the search's report.
-    pub fn markdown(&self) -> String {
+    /// The validation as a Markdown section of the search's report on `env`.
+    pub fn markdown(&self, env: &str) -> String {
         let ci = |s: &Option<Summary>| interval(*s, 3);
+        // A gymnasium env has no thesis optimum to score beside the top settings.
+        let thesis = if TunedConfig::resolve("thesis", env).is_ok() { " and the thesis optimum" } else { "" };
         let mut md = format!(
-            "\n## Validation\n\nThe hall of fame's top {} and the thesis optimum, re-scored on {} validation datasets \
+            "\n## Validation\n\nThe hall of fame's top {}{thesis}, re-scored on {} validation datasets \
              (fresh datasets, network and evaluation seeds). Means with 95 % intervals (1.96·std/√n).\n\n",
             self.rule.top, self.rule.datasets
         );

@@ -78,7 +78,9 @@ pub struct Summary {
 pub fn write(dir: &Path, model: &Model, model_label: &str, req: &Request) -> Result<Summary> {
     store::create_dir(dir)?;
     let env = &model.info.env;
-    let runs = rollout::run(env, &|o, q| model.q(o, q), model.info.eval_seed, req.episodes, req.start, req.steps, true);
+    let draw = Some(rollout::Draw { episodes: req.draw, frames: req.frames.max(2) });
+    let q = |o: &[f64], q: &mut [f64]| model.q(o, q);
+    let runs = rollout::run(env, &q, model.info.eval_seed, req.episodes, req.start, req.steps, true, draw)?;
     let trajectories: Vec<Trajectory> = runs.iter().filter_map(|(_, t)| t.clone()).collect();
     let csv = rollout::csv(env, &trajectories);
     store::write_atomic(&dir.join("trajectory.csv"), |w| std::io::Write::write_all(w, csv.as_bytes()))?;
@@ -87,6 +89,17 @@ pub fn write(dir: &Path, model: &Model, model_label: &str, req: &Request) -> Res
         let gif = if t.episode < req.draw {
             let stem = format!("episode-{}", t.episode);
             plot(&dir.join(&stem), env, t)?;
+            // A gymnasium env without rgb_array rendering has no pictures to animate.
+            if matches!(env, crate::env::EnvConfig::Gymnasium(_)) && t.frames.is_empty() {
+                lines.push(EpisodeLine {
+                    episode: t.episode,
+                    score: e.score,
+                    steps: e.steps,
+                    failed: e.failed,
+                    gif: None,
+                });
+                continue;
+            }
             let limits = GifLimits { max_frames: req.frames.max(2), ..GifLimits::default() };
             let file = format!("{stem}.gif");
             let info: GifInfo = animate(&dir.join(&file), env, t, limits)?;

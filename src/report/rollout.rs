@@ -4,6 +4,7 @@
 //! The schematics are drawn to scale with plotters primitives, angles true (nothing exaggerated),
 //! with the failure limits marked faintly so a viewer can see how close the policy came to them.
 
+mod frames;
 mod scene;
 
 use crate::env::EnvConfig;
@@ -67,9 +68,30 @@ const DELAY_MS: (u32, u32) = (40, 200);
 /// smallest that keeps the frames within `limits.max_frames`, and always the final state. Frames
 /// last the simulated time they cover, clamped to 40–200 ms. An empty trajectory gives one frame
 /// of its start state.
+/// A gymnasium env's rollout shows the frames its `render()` gave instead (its trajectory's
+/// `frames`).
 pub fn animate(path: &Path, env: &EnvConfig, traj: &Trajectory, limits: GifLimits) -> Result<GifInfo> {
     limits.validate()?;
     ensure_font();
+    if let (EnvConfig::Gymnasium(g), false) = (env, traj.frames.is_empty()) {
+        let tmp = temp_path(path);
+        let written = frames::write(&tmp, g, traj, limits.max_frames, dt(env));
+        let finished = written.and_then(|info| {
+            std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| Error::io(&tmp, e))?;
+            std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
+            Ok(info)
+        });
+        return match finished {
+            Ok(info) => {
+                let bytes = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+                Ok(GifInfo { bytes, ..info })
+            }
+            Err(e) => {
+                let _ = std::fs::remove_file(&tmp);
+                Err(e)
+            }
+        };
+    }
     let states = traj.steps.len() + 1;
     let (stride, shown) = sample(states, limits.max_frames);
     let ms = (dt(env) * stride as f64 * 100.0).round() * 10.0;
@@ -169,10 +191,12 @@ fn series(label: &str, points: Vec<(f64, f64)>, color: usize) -> Series {
 pub fn plot(base: &Path, env: &EnvConfig, traj: &Trajectory) -> Result<()> {
     let (step, n) = (dt(env), traj.steps.len());
     let states = || traj.steps.iter().map(|s| s.state.as_slice()).chain(std::iter::once(traj.last.as_slice()));
-    let units: &[&str] = match env {
-        EnvConfig::Pendulum(_) => &["rad", "rad/s"],
-        EnvConfig::Cartpole(_) => &["m", "m/s", "rad", "rad/s"],
-        EnvConfig::Bicycle(_) => &["rad", "rad/s", "rad", "rad/s", "rad"],
+    let names = state_names(env);
+    let units: Vec<&str> = match env {
+        EnvConfig::Pendulum(_) => vec!["rad", "rad/s"],
+        EnvConfig::Cartpole(_) => vec!["m", "m/s", "rad", "rad/s"],
+        EnvConfig::Bicycle(_) => vec!["rad", "rad/s", "rad", "rad/s", "rad"],
+        EnvConfig::Gymnasium(_) => vec![""; names.len()],
     };
     let limits = |i: usize| -> Vec<f64> {
         let l = match (env, i) {
@@ -183,13 +207,14 @@ pub fn plot(base: &Path, env: &EnvConfig, traj: &Trajectory) -> Result<()> {
         };
         vec![-l, l]
     };
-    let mut panels: Vec<Panel> = state_names(env)
+    let mut panels: Vec<Panel> = names
         .iter()
         .zip(units)
         .enumerate()
         .map(|(i, (name, unit))| {
             let pts = states().enumerate().map(|(k, s)| (k as f64 * step, s.get(i).copied().unwrap_or(f64::NAN)));
-            Panel { label: format!("{name} ({unit})"), series: vec![series(name, pts.collect(), 0)], limits: limits(i) }
+            let label = if unit.is_empty() { name.clone() } else { format!("{name} ({unit})") };
+            Panel { label, series: vec![series(name, pts.collect(), 0)], limits: limits(i) }
         })
         .collect();
     // Actions hold for a whole step: drawn as steps, one corner per change (a repeated point
@@ -229,6 +254,11 @@ pub fn plot(base: &Path, env: &EnvConfig, traj: &Trajectory) -> Result<()> {
                 series("handlebar torque T (N·m)", held(&|a| c.torques.get(a / 3).copied()), 1),
                 series("displacement d (cm)", held(&|a| c.displacements.get(a % 3).map(|d| d * 100.0)), 2),
             ],
+            limits: vec![],
+        },
+        EnvConfig::Gymnasium(_) => Panel {
+            label: "action".into(),
+            series: vec![series("action", held(&|a| env.env().actions().get(a).copied()), 1)],
             limits: vec![],
         },
     };
@@ -355,7 +385,7 @@ mod tests {
                 break;
             }
         }
-        Trajectory { episode: 0, steps: kept, last: s, score, failed }
+        Trajectory { episode: 0, steps: kept, last: s, score, failed, frames: vec![] }
     }
 
     /// Pendulum: pump energy (torque along the motion), then balance near the top.
@@ -482,7 +512,7 @@ mod tests {
         for name in crate::env::NAMES {
             let env = EnvConfig::by_name(name).unwrap();
             let last = vec![0.1; env.env().state_dim()];
-            let t = Trajectory { episode: 0, steps: vec![], last, score: 0.0, failed: false };
+            let t = Trajectory { episode: 0, steps: vec![], last, score: 0.0, failed: false, frames: vec![] };
             let path = dir.0.join(format!("{name}.gif"));
             let info = animate(&path, &env, &t, GifLimits::default()).unwrap();
             check(&info, &path, 0);
@@ -498,7 +528,14 @@ mod tests {
             let env = EnvConfig::by_name(name).unwrap();
             let odd = [vec![], vec![f64::NAN; 5], vec![1e300, -f64::INFINITY, 1e9, 7.0, -1e12]];
             let steps = odd.iter().map(|s| Step { state: s.clone(), action: 99, reward: f64::NAN, q: vec![] });
-            let t = Trajectory { episode: 1, steps: steps.collect(), last: vec![], score: f64::NAN, failed: true };
+            let t = Trajectory {
+                episode: 1,
+                steps: steps.collect(),
+                last: vec![],
+                score: f64::NAN,
+                failed: true,
+                frames: vec![],
+            };
             let info = animate(&dir.0.join("odd.gif"), &env, &t, GifLimits::default()).unwrap();
             check(&info, &dir.0.join("odd.gif"), 3);
             plot(&dir.0.join("odd"), &env, &t).unwrap();

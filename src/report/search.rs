@@ -226,7 +226,7 @@ pub fn write(dir: &Path) -> Result<usize> {
     );
     md.push_str("\n![fitness per generation](fitness.png)\n");
     if let Some(v) = validate::load(dir) {
-        md.push_str(&v.markdown());
+        md.push_str(&v.markdown(spec.env.env().name()));
         md.push_str(&side_by_side(&v, spec.env.env().name()));
         md.push_str(&paired_differences(&v));
     }

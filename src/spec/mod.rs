@@ -477,6 +477,8 @@ impl Spec {
     /// (which `search --resume --generations` may change), recorded in units and `run.json`.
     pub fn results_hash(&self) -> String {
         let mut s = self.clone();
+        // A gymnasium env's Python and timeout decide no result.
+        s.env = s.env.for_hash();
         s.search.stop = StopRules { generations: 1, max_hours: None, stall_generations: None };
         // Claims decide how a comparison is read, not any number a search computes.
         s.experiments.et.claims.clear();
@@ -511,7 +513,9 @@ impl Spec {
     /// Deserialises and validates a JSON value; `origin` names it in errors.
     pub fn from_value(value: serde_json::Value, origin: &Path) -> Result<Spec> {
         crate::error::expect_object(&value, origin, "a spec")?;
-        let spec: Spec = crate::error::from_json(value, origin, "")?;
+        let mut spec: Spec = crate::error::from_json(value, origin, "")?;
+        // A gymnasium env's spaces are asked of its worker the first time (`env.probed`).
+        spec.env.resolve().map_err(|e| file_error(origin, e.to_string()))?;
         spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
         Ok(spec)
     }

@@ -253,3 +253,5 @@ pub fn varint(mut n: usize, out: &mut Vec<u8>) {
         }
     }
 }
+
+pub mod gym;

@@ -147,6 +147,8 @@ pub(super) fn frame<DB: DrawingBackend>(
         EnvConfig::Pendulum(c) => pendulum(a, &sc, c, state, action.and_then(|i| c.actions.get(i).copied())),
         EnvConfig::Cartpole(c) => cartpole(a, &sc, c, state, action),
         EnvConfig::Bicycle(c) => bicycle(a, &sc, c, state, action),
+        // Drawn from its own frames (see `frames`); without them, the caption alone.
+        EnvConfig::Gymnasium(_) => Ok(()),
     }
 }
 
@@ -159,6 +161,9 @@ fn action_text(env: &EnvConfig, a: usize) -> String {
             (Some(t), Some(d)) => format!("T {t:+.0}, d {:+.0} cm", d * 100.0),
             _ => format!("action {a}"),
         },
+        EnvConfig::Gymnasium(_) => {
+            format!("action {}", env.env().actions().get(a).copied().unwrap_or(a as f64))
+        }
     }
 }
 
