@@ -146,7 +146,7 @@ fn readme_rows() -> Vec<(String, String)> {
     let mut rows = Vec::new();
     for line in text.lines() {
         if let Some(h) = line.strip_prefix("## ") {
-            section = h.split_whitespace().next().unwrap_or("").replace('-', "");
+            section = h.split_whitespace().next().unwrap_or("").to_string();
             continue;
         }
         if !line.starts_with('|') {
@@ -157,9 +157,16 @@ fn readme_rows() -> Vec<(String, String)> {
             header = line.to_string();
             continue;
         }
-        let copied = ["| generation | new units |", "| | datasets |", "| | setting |", "| tuned config minus |"]
-            .iter()
-            .any(|h| header.starts_with(h));
+        let copied = [
+            "| generation | new units |",
+            "| | datasets |",
+            "| | setting |",
+            "| tuned config minus |",
+            "| | GA | random |",
+            "| GA winner minus random winner |",
+        ]
+        .iter()
+        .any(|h| header.starts_with(h));
         if copied && !line.starts_with("|---") {
             rows.push((section.clone(), line.to_string()));
         }
