@@ -1,11 +1,10 @@
 //! `bfqi-ga compare` and `bfqi-ga report` end to end.
 
 mod common;
-use common::{TempDir, bin, fresh, json, read};
+use common::{TempDir, bin, fresh, json, read, spawn_quiet, wait_for_entries};
 
 use std::path::Path;
-use std::process::{Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 fn tmp(name: &str) -> TempDir {
     fresh("compare", name)
@@ -112,20 +111,9 @@ fn interrupted_and_resumed_is_identical() {
     let (whole, cut) = (tmp("whole"), tmp("cut"));
     let bigger = ["--episodes", "150", "--jobs", "2"];
     assert!(compare(&whole, &bigger).status.success());
-    let mut child = bin()
-        .args(["compare", "cartpole", "--out", cut.to_str().unwrap()])
-        .args(SMALL)
-        .args(bigger)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let t = Instant::now();
-    while std::fs::read_dir(cut.join("units")).map(|d| d.count()).unwrap_or(0) < 4
-        && t.elapsed() < Duration::from_secs(120)
-    {
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    let mut child =
+        spawn_quiet(bin().args(["compare", "cartpole", "--out", cut.to_str().unwrap()]).args(SMALL).args(bigger));
+    wait_for_entries(&cut.join("units"), 4, &mut child);
     child.kill().unwrap();
     child.wait().unwrap();
     let o = bin().args(["compare", "--resume", cut.to_str().unwrap(), "--quiet"]).output().unwrap();

@@ -6,7 +6,7 @@
 
 mod common;
 use common::gym::{gym_bin, python, write_spec};
-use common::{TempDir, empty_dir, read, tiny_with};
+use common::{TempDir, empty_dir, read, tiny_with, wait_for_entries};
 
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -133,7 +133,7 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
     let crashed = d.join("crashed");
-    let child = gym_bin(&py)
+    let mut child = gym_bin(&py)
         .arg("search")
         .arg(&s)
         .args(tiny_with(&slower))
@@ -144,10 +144,7 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
         .spawn()
         .unwrap();
     let units = crashed.join("units");
-    let t = Instant::now();
-    while std::fs::read_dir(&units).map(|d| d.count()).unwrap_or(0) < 2 && t.elapsed() < Duration::from_secs(120) {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    wait_for_entries(&units, 2, &mut child);
     std::fs::write(&flag, "").unwrap();
     let o = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);

@@ -5,11 +5,10 @@
 
 mod common;
 use common::gym::{gym_bin, python, write_spec};
-use common::{TempDir, empty_dir, read, tiny_with};
+use common::{TempDir, empty_dir, read, spawn_quiet, tiny_with, wait_for_entries};
 
 use std::path::{Path, PathBuf};
-use std::process::{Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 fn spec(dir: &TempDir) -> PathBuf {
     let env =
@@ -101,24 +100,11 @@ fn a_gymnasium_search_killed_mid_generation_resumes_to_the_same_result() {
     let slower = ["--episodes", "300", "--iterations", "3", "--datasets", "3", "--population", "6", "--jobs", "2"];
     let (whole, killed) = (d.join("whole"), d.join("killed"));
     ok(&search(&py, &s, &whole, &slower));
-    let mut child = gym_bin(&py)
-        .arg("search")
-        .arg(&s)
-        .args(tiny_with(&slower))
-        .arg("--out")
-        .arg(&killed)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let units = killed.join("units");
-    let t = Instant::now();
-    while std::fs::read_dir(&units).map(|d| d.count()).unwrap_or(0) < 3 && t.elapsed() < Duration::from_secs(120) {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let mut child = spawn_quiet(gym_bin(&py).arg("search").arg(&s).args(tiny_with(&slower)).arg("--out").arg(&killed));
+    wait_for_entries(&killed.join("units"), 3, &mut child);
     child.kill().unwrap(); // SIGKILL: its workers see their input end and exit
     child.wait().unwrap();
-    let stored = std::fs::read_dir(&units).unwrap().count();
+    let stored = std::fs::read_dir(killed.join("units")).unwrap().count();
     assert!(stored < 6 * 3, "killed before the first generation finished ({stored} units stored)");
     ok(&gym_bin(&py).args(["search", "--resume"]).arg(&killed).arg("--quiet").output().unwrap());
     same(&whole, &killed, "after kill -9 and resume");

@@ -6,7 +6,8 @@ use serde_json::Value;
 use std::ffi::OsStr;
 use std::ops::Deref;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
 
 /// The `bfqi-ga` binary under test.
 pub fn bin() -> Command {
@@ -96,6 +97,23 @@ pub fn copy_dir(from: &Path, to: &Path) {
             std::fs::copy(e.path(), target).unwrap();
         }
     }
+}
+
+/// Starts `cmd` with its output discarded: a run the test will kill or interrupt.
+pub fn spawn_quiet(cmd: &mut Command) -> Child {
+    cmd.stdout(Stdio::null()).stderr(Stdio::null()).spawn().expect("the binary under test starts")
+}
+
+/// Waits until `dir` holds at least `n` entries (say, stored units), the child has ended, or two
+/// minutes have passed, whichever comes first; returns how many entries `dir` holds then. Used to
+/// kill a run part-way through: the caller asserts that the run was still short of its end.
+pub fn wait_for_entries(dir: &Path, n: usize, child: &mut Child) -> usize {
+    let count = || std::fs::read_dir(dir).map(|d| d.count()).unwrap_or(0);
+    let t = Instant::now();
+    while count() < n && t.elapsed() < Duration::from_secs(120) && child.try_wait().unwrap().is_none() {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    count()
 }
 
 /// A tiny but real search's flags: cart-pole-sized datasets of 25 episodes, 2 datasets, 2 FQI
