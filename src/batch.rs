@@ -32,6 +32,10 @@ pub struct SearchJob {
     /// whose validated winner this job's is checked against in the summary.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference: Option<String>,
+    /// A search run whose stored units this job takes before it starts (`search --units-from`):
+    /// checked with the plan, taken once.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub units_from: Option<String>,
     /// Overrides of the spec, as `search`'s flags.
     #[serde(flatten)]
     pub overrides: SearchOverrides,
@@ -60,9 +64,18 @@ impl<'de> Deserialize<'de> for SearchJob {
             presets: Vec<String>,
             #[serde(default)]
             reference: Option<String>,
+            #[serde(default)]
+            units_from: Option<String>,
         }
-        let (own, overrides): (Own, _) = split(d, &["name", "search", "presets", "reference"])?;
-        Ok(SearchJob { name: own.name, search: own.search, presets: own.presets, reference: own.reference, overrides })
+        let (own, overrides): (Own, _) = split(d, &["name", "search", "presets", "reference", "units_from"])?;
+        Ok(SearchJob {
+            name: own.name,
+            search: own.search,
+            presets: own.presets,
+            reference: own.reference,
+            units_from: own.units_from,
+            overrides,
+        })
     }
 }
 
@@ -98,12 +111,15 @@ where
 pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
     for (i, job) in plan.jobs.iter().enumerate() {
         let checked = match job {
-            Job::Search(s) => {
-                search::resolve(&s.search, &s.presets, &s.overrides).and_then(|spec| match &s.reference {
+            Job::Search(s) => search::resolve(&s.search, &s.presets, &s.overrides).and_then(|spec| {
+                if let Some(from) = &s.units_from {
+                    search::check_units_from(&spec.0, Path::new(from))?;
+                }
+                match &s.reference {
                     Some(r) => crate::report::batch::check_reference(&spec.0, Path::new(r)),
                     None => Ok(()),
-                })
-            }
+                }
+            }),
             Job::Compare(c) => {
                 let mut r = c.request.clone();
                 let from = r.tuned.starts_with("from:");
@@ -356,6 +372,17 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
                 if !job_dir.join("spec.json").is_file() {
                     search::prepare(&s.search, &s.presets, &s.overrides, Some(&job_dir), Path::new("results"))?;
                 }
+                if let Some(from) = &s.units_from {
+                    // Taken once: run.json records the copy when it is done (a copy cut short
+                    // is taken again, skipping the units already there).
+                    let info: crate::ga::records::RunInfo = read_json(&job_dir.join("run.json"))?;
+                    if !info.units_from.iter().any(|u| u.dir == *from) {
+                        let n = search::share_units(&job_dir, Path::new(from))?;
+                        if !quiet {
+                            eprintln!("{n} units taken from {from}");
+                        }
+                    }
+                }
                 let exec = make_exec(&job_dir)?;
                 let ending = search::run(&job_dir, exec.as_ref(), budget, quiet)?;
                 Ok((ending, describe_search(&job_dir)))
@@ -474,6 +501,25 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
         crate::progress::human(total),
         total / 3600.0
     ));
+    // A wall time means little without the machine: the same batch runs several times longer on
+    // an AVX2-only CPU than on an AVX-512 one.
+    let mut machines: Vec<String> = Vec::new();
+    for s in states {
+        for m in crate::machine::of_run(&dir.join(&s.dir)) {
+            if !machines.contains(&m) {
+                machines.push(m);
+            }
+        }
+    }
+    match machines.as_slice() {
+        [] => {}
+        [one] => md.push_str(&format!("Every invocation ran on {one}.\n")),
+        many => md.push_str(&format!(
+            "Invocations ran on {} set-ups (CPU, kernel level, threads), so the times add up different speeds: {}.\n",
+            many.len(),
+            many.join("; ")
+        )),
+    }
     let checks: Vec<(String, String, String)> = plan
         .jobs
         .iter()

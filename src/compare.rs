@@ -306,7 +306,7 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": r.analysis, "learner": r.learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
-        "config_hash": cfg.results_hash(),
+        "config_hash": cfg.results_hash(), "machine": crate::machine::Machine::this(),
     });
     Ok((cfg, info))
 }
@@ -456,6 +456,18 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     comparison.store.prepare()?;
     let all = comparison.ids();
     let ids: Vec<String> = all.iter().filter(|id| !comparison.stored(id)).cloned().collect();
+    if !ids.is_empty() && ids.len() < all.len() && info_path.is_file() {
+        // A comparison continued: say which binary and machine add wall time to it.
+        let mut info: serde_json::Value = read_json(&info_path)?;
+        let entry = serde_json::json!({
+            "at": store::now_utc().1, "commit": env!("BFQI_GA_COMMIT"), "machine": crate::machine::Machine::this(),
+        });
+        match info.get_mut("resumed").and_then(|r| r.as_array_mut()) {
+            Some(list) => list.push(entry),
+            None => info["resumed"] = serde_json::json!([entry]),
+        }
+        write_json(&info_path, &info)?;
+    }
     let progress = Progress::new("comparison", 1, quiet);
     progress.line(&format!(
         "compare {} → {} ({} units to run)",

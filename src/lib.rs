@@ -19,6 +19,7 @@ pub mod fqi;
 pub mod ga;
 pub mod learn;
 pub mod limits;
+pub mod machine;
 pub mod model;
 pub mod progress;
 pub mod report;

@@ -69,6 +69,11 @@ fn budget_stop_then_resume_equals_an_uninterrupted_batch() {
     }
     let summary = read(cut.join("summary.md"));
     assert!(summary.contains("[report](c/report.md)"), "{summary}");
+    // Both invocations ran here with the same threads: one set-up, named once under the times.
+    let here = json(cut.join("c/run.json"))["machine"]["cpu"].as_str().unwrap().to_string();
+    let line =
+        summary.lines().find(|l| l.starts_with("Every invocation ran on ")).unwrap_or_else(|| panic!("{summary}"));
+    assert!(line.contains(&here), "{line}");
 }
 
 #[test]
@@ -168,4 +173,72 @@ fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
     for env in ["cartpole", "bicycle", "pendulum"] {
         assert!(text.contains(&format!("\"reference\": \"results/searches/{env}\"")), "{env} has no reference");
     }
+}
+
+#[test]
+fn the_shipped_night_levers_plan_replays_the_committed_full_searches() {
+    // Each job takes the units of the full search it is checked against: the plan passes its
+    // check only while both have the same units hash, i.e. differ only in the stop rules here.
+    let path = Path::new("searches/batches/night-levers.json");
+    let plan = bfqi_ga::batch::Plan::parse(&read(path), path).unwrap();
+    assert_eq!(plan.jobs.len(), 3);
+    bfqi_ga::batch::check(&plan, path).unwrap();
+    for job in &plan.jobs {
+        let bfqi_ga::batch::Job::Search(s) = job else { panic!("{} is not a search", job.name()) };
+        assert_eq!(s.units_from, s.reference, "{}", s.name);
+        assert_eq!((s.overrides.generations, s.overrides.stall_generations), (Some(10), Some(4)), "{}", s.name);
+    }
+}
+
+#[test]
+fn a_search_job_takes_the_units_of_another_run_once_and_a_foreign_spec_is_refused_with_the_plan() {
+    let d = tmp("units-from");
+    // The run to take from: the plan's search at three generations, made beforehand.
+    let three = d.join("three");
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&three)
+        .args(tiny_with(&["--episodes", "25", "--seed", "4", "--generations", "3"]))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let job = format!(
+        r#"{{"name": "s", "search": "cartpole", "presets": ["quick"], "episodes": 25, "datasets": 2, "iterations": 2, "population": 4, "generations": 2, "seed": 4, "units_from": "{}"}}"#,
+        three.display()
+    );
+    let p = plan(&d, &[&job]);
+    let out = d.join("b");
+    // Stopped before its first unit, then resumed: the units are taken by the first invocation only.
+    let o = batch(&[p.to_str().unwrap(), "--out", out.to_str().unwrap(), "--max-hours", "0.000001"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = batch(&["--resume", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info = json(out.join("s/run.json"));
+    let taken = info["units_from"].as_array().unwrap();
+    assert_eq!(taken.len(), 1, "{info}");
+    let units = std::fs::read_dir(three.join("units")).unwrap().count();
+    assert_eq!(taken[0]["units"], units, "{info}");
+    // Its two generations are the longer run's first two, computed by nobody new: every unit
+    // file is the other run's, byte for byte.
+    let lines = |run: &Path| read(run.join("generations.jsonl")).lines().map(json_line).collect::<Vec<_>>();
+    assert_eq!(lines(&out.join("s"))[..], lines(&three)[..2]);
+    for e in std::fs::read_dir(out.join("s/units")).unwrap() {
+        let f = e.unwrap().file_name();
+        assert_eq!(read(out.join("s/units").join(&f)), read(three.join("units").join(&f)), "{f:?}");
+    }
+
+    // Units of another spec (another seed): the plan is refused before anything runs.
+    let foreign = job.replace(r#""seed": 4"#, r#""seed": 5"#);
+    let p = plan(&d, &[&foreign]);
+    let o = batch(&[p.to_str().unwrap(), "--out", d.join("refused").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("job 1 (s)"), "{err}");
+    assert!(err.contains("--units-from") && err.contains("another spec"), "{err}");
+    assert!(!d.join("refused").exists());
+}
+
+/// A generations.jsonl line's individuals (the rest holds wall times).
+fn json_line(l: &str) -> serde_json::Value {
+    serde_json::from_str::<serde_json::Value>(l).unwrap()["individuals"].clone()
 }

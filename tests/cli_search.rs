@@ -1,11 +1,10 @@
 //! `bfqi-ga search`, `reproduce` and `status` end to end.
 
 mod common;
-use common::{TempDir, bin, fresh, json, read, tiny_with};
+use common::{TempDir, bin, fresh, json, read, spawn_quiet, tiny_with, wait_for_entries};
 
 use std::path::{Path, PathBuf};
-use std::process::{Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
 
 fn tmp(name: &str) -> TempDir {
     fresh("search", name)
@@ -78,31 +77,114 @@ fn one_and_two_threads_give_identical_results_and_reproduce_confirms() {
 }
 
 #[test]
+fn each_invocation_records_its_machine_and_the_report_names_them() {
+    let dir = tmp("machine");
+    let o = search(&dir, &["--jobs", "1", "--generations", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run: serde_json::Value = json(dir.join("run.json"));
+    let m = &run["machine"];
+    assert_eq!(m["threads"], 1, "{run}");
+    assert!(m["cpus"].as_u64().unwrap() >= 1 && !m["cpu"].as_str().unwrap().is_empty(), "{run}");
+    let isa = m["mlp_isa"].as_str().unwrap();
+    assert!(["avx512", "avx2", "portable"].contains(&isa), "{isa}");
+
+    // A second invocation with two threads: recorded apart, and the wall time names both set-ups.
+    let r = bin()
+        .args(["search", "--resume"])
+        .arg(&dir)
+        .args(["--generations", "2", "--jobs", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let run: serde_json::Value = json(dir.join("run.json"));
+    assert_eq!(run["resumed"][0]["machine"]["threads"], 2, "{run}");
+    assert_eq!(run["machine"]["threads"], 1, "the first invocation's record stays");
+    assert!(bin().arg("report").arg(&dir).output().unwrap().status.success());
+    let report = read(dir.join("report.md"));
+    let cpu = m["cpu"].as_str().unwrap();
+    let both = format!("on {cpu}, {isa}, 1 thread and {cpu}, {isa}, 2 threads (its invocations differ");
+    assert!(report.lines().any(|l| l.contains("Wall time") && l.contains(&both)), "{report}");
+}
+
+#[test]
+fn a_search_that_differs_in_its_stop_rules_replays_anothers_generations_and_validation_from_its_units() {
+    let (long, short) = (tmp("stop-long"), tmp("stop-short"));
+    assert!(search(&long, &["--generations", "3"]).status.success());
+    let validate = |run: &Path| {
+        bin().arg("validate").arg(run).args(["--top", "3", "--datasets", "3", "--quiet"]).output().unwrap()
+    };
+    assert!(validate(&long).status.success());
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&short)
+        .args(tiny_with(&["--generations", "2"]))
+        .arg("--units-from")
+        .arg(&long)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let gens = |run: &Path| -> Vec<serde_json::Value> {
+        read(run.join("generations.jsonl"))
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["individuals"].clone())
+            .collect()
+    };
+    assert_eq!(gens(&short)[..], gens(&long)[..2], "the same GA path, generation by generation");
+    let files = |run: &Path, folder: &str| -> Vec<std::ffi::OsString> {
+        std::fs::read_dir(run.join(folder)).unwrap().map(|e| e.unwrap().file_name()).collect()
+    };
+    let info: serde_json::Value = json(short.join("run.json"));
+    assert_eq!(info["units_from"][0]["validation"], files(&long, "validation").len(), "{info}");
+    assert!(validate(&short).status.success());
+    // A unit both validations need was taken, not trained again: its file (with its seconds) is
+    // the longer run's.
+    let shared: Vec<_> =
+        files(&short, "validation").into_iter().filter(|f| long.join("validation").join(f).is_file()).collect();
+    assert!(!shared.is_empty(), "the two runs validate some setting in common");
+    for f in shared {
+        assert_eq!(read(short.join("validation").join(&f)), read(long.join("validation").join(&f)), "{f:?}");
+    }
+}
+
+#[test]
+fn a_smaller_pruned_search_takes_a_larger_ones_units_and_ends_as_if_it_had_computed_them() {
+    let (big, own, taken) = (tmp("share-big"), tmp("share-own"), tmp("share-taken"));
+    assert!(search(&big, &["--population", "6", "--generations", "3"]).status.success());
+    let small = ["--population", "4", "--generations", "3", "--prune"];
+    assert!(search(&own, &small).status.success());
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&taken)
+        .args(tiny_with(&small))
+        .arg("--units-from")
+        .arg(&big)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info: serde_json::Value = json(taken.join("run.json"));
+    assert!(info["units_from"][0]["units"].as_u64().unwrap() > 0, "{info}");
+    for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
+        assert_eq!(read(own.join(f)), read(taken.join(f)), "{f}: taking the units changed the result");
+    }
+    // The taken units are stamped with this run's results hash, so they verify here.
+    let st = bin().arg("status").arg(&taken).output().unwrap();
+    let text = String::from_utf8_lossy(&st.stdout);
+    assert!(!text.contains("not verify") && text.contains("finished"), "{text}");
+}
+
+#[test]
 fn killed_mid_generation_and_resumed_ends_identical() {
     let (whole, killed) = (tmp("whole"), tmp("killed"));
     let slower = ["--episodes", "400", "--iterations", "4", "--datasets", "3", "--population", "6", "--jobs", "2"];
     let o = search(&whole, &slower);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
-    let mut child = bin()
-        .args(["search", "cartpole", "--out", killed.to_str().unwrap()])
-        .args(tiny_with(&slower))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let units = killed.join("units");
-    let t = Instant::now();
-    loop {
-        let n = std::fs::read_dir(&units).map(|d| d.count()).unwrap_or(0);
-        if n >= 3 || t.elapsed() > Duration::from_secs(120) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let mut child =
+        spawn_quiet(bin().args(["search", "cartpole", "--out", killed.to_str().unwrap()]).args(tiny_with(&slower)));
+    wait_for_entries(&killed.join("units"), 3, &mut child);
     child.kill().unwrap(); // SIGKILL
     child.wait().unwrap();
-    let stored = std::fs::read_dir(&units).unwrap().count();
+    let stored = std::fs::read_dir(killed.join("units")).unwrap().count();
     assert!(stored < 6 * 3, "killed before the first generation finished ({stored} units stored)");
 
     let st = bin().arg("status").arg(&killed).output().unwrap();

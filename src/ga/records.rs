@@ -3,6 +3,7 @@
 
 use super::chromosome::{Chromosome, Decoded};
 use super::operators::Birth;
+use crate::machine::Machine;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -38,6 +39,10 @@ pub struct RunInfo {
     /// Runs whose units this one took at its start (`search --units-from`), and how many.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub units_from: Vec<SharedUnits>,
+    /// The machine of the invocation that created the run (absent in runs made before it was
+    /// recorded): its wall times are that machine's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine: Option<Machine>,
 }
 
 /// Units a search took from another run's cache (`search --units-from`), in `run.json`.
@@ -48,6 +53,13 @@ pub struct SharedUnits {
     /// Units copied: those that verify (checksum, where they carry one) and were computed under
     /// this run's results hash.
     pub units: usize,
+    /// Validation units copied likewise (absent in runs made before they were).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub validation: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// One invocation that continued a search, in `run.json`.
@@ -57,6 +69,9 @@ pub struct Resumed {
     pub at: String,
     /// The source commit of its binary.
     pub commit: String,
+    /// The machine it ran on (absent in invocations made before it was recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub machine: Option<Machine>,
 }
 
 /// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.

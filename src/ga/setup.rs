@@ -20,40 +20,68 @@ pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
 }
 
 /// Copies into the new search in `dir` every unit of the run `from` that this search would
-/// compute identically: whole (its checksum verifies) and computed under the same results hash,
-/// which leaves out how settings are found (`search.strategy`) and the stop rules. A random
-/// baseline started with `--units-from` the GA search of its spec thus shares the GA's cache
-/// (its generation 0 is the GA's). Records the copy in `run.json`; returns the number of units.
+/// compute identically: whole (its checksum verifies against its own run's spec) and computed
+/// under the same units hash ([`Spec::units_hash`]), which leaves out how settings are found
+/// (strategy, gene ranges, GA parameters, pruning) and the stop rules. A random baseline started
+/// with `--units-from` the GA search of its spec thus shares the GA's cache (its generation 0 is
+/// the GA's), and a smaller or pruned search the full one's. Its validation units are copied
+/// too, so settings both runs validate are not trained again; a search that differs only in its
+/// stop rules replays the other's generations and validation for free. Records the copy in
+/// `run.json`; returns the number of search units copied.
 pub fn share_units(dir: &Path, from: &Path) -> Result<usize> {
     let spec = load_spec(dir)?;
     check_units_from(&spec, from)?;
-    let theirs = super::units::Evaluator::new(spec.clone(), from);
-    let ours = super::units::Evaluator::new(spec, dir);
-    let mut copied = 0;
-    for id in crate::run_dir::UnitStore::units(from).ids() {
-        if ours.unit_path(&id).is_file() || super::units::parse_unit_id(&id).is_none() {
-            continue;
-        }
-        // `load_unit` verifies the checksum and the results hash (warning once about the rest);
-        // units written before they carried either (the thesis-sized searches') are taken on
-        // their run's spec.json, whose results hash was checked above.
-        if theirs.load_unit(&id).is_some() {
-            // The file's bytes, so the copy is the unit as computed.
-            let bytes = std::fs::read(theirs.unit_path(&id))
-                .map_err(|e| Error::File { path: theirs.unit_path(&id), message: e.to_string() })?;
-            store::write_atomic(&ours.unit_path(&id), |w| std::io::Write::write_all(w, &bytes))?;
-            copied += 1;
-        }
-    }
+    let source = load_spec(from)?;
+    let copied = copy_units(&spec, &source, dir, from, super::units::Role::Search)?;
+    let validation = copy_units(&spec, &source, dir, from, super::units::Role::Validation)?;
     let path = dir.join("run.json");
     let mut info: RunInfo = store::read_json(&path)?;
-    info.units_from.push(super::records::SharedUnits { dir: from.display().to_string(), units: copied });
+    info.units_from.push(super::records::SharedUnits { dir: from.display().to_string(), units: copied, validation });
     write_json(&path, &info)?;
     Ok(copied)
 }
 
+/// Copies the verified units of `role` from the run `from` (of spec `source`) into the search in
+/// `dir` (of spec `spec`).
+fn copy_units(spec: &Spec, source: &Spec, dir: &Path, from: &Path, role: super::units::Role) -> Result<usize> {
+    let theirs = super::units::Evaluator::with_role(source.clone(), from, role);
+    let ours = super::units::Evaluator::with_role(spec.clone(), dir, role);
+    let ids = crate::run_dir::UnitStore::named(from, role.folder()).ids();
+    if !ids.is_empty() {
+        crate::run_dir::UnitStore::named(dir, role.folder()).prepare()?;
+    }
+    let ours_hash = spec.results_hash();
+    let mut copied = 0;
+    for id in ids {
+        if ours.unit_path(&id).is_file() || super::units::parse_unit_id(&id).is_none() {
+            continue;
+        }
+        // `load_unit` verifies the checksum and the results hash of the run that computed it
+        // (warning once about the rest); units written before they carried either (the
+        // thesis-sized searches') are taken on their run's spec.json, checked above.
+        let Some(mut unit) = theirs.load_unit(&id) else { continue };
+        match &unit.spec_hash {
+            Some(h) if *h != ours_hash => {
+                // Computed under a results hash that differs from ours only in what decides no
+                // unit's numbers (the units hashes agree): stamped with ours, so this run verifies it.
+                unit.spec_hash = Some(ours_hash.clone());
+                unit.checksum = Some(unit.content_checksum());
+                write_json(&ours.unit_path(&id), &unit)?;
+            }
+            _ => {
+                // The file's bytes, so the copy is the unit as computed.
+                let bytes = std::fs::read(theirs.unit_path(&id))
+                    .map_err(|e| Error::File { path: theirs.unit_path(&id), message: e.to_string() })?;
+                store::write_atomic(&ours.unit_path(&id), |w| std::io::Write::write_all(w, &bytes))?;
+            }
+        }
+        copied += 1;
+    }
+    Ok(copied)
+}
+
 /// Refuses `--units-from` a directory that is not a search run, or whose units were computed
-/// under another results hash than `spec`'s.
+/// under another units hash than `spec`'s.
 pub fn check_units_from(spec: &Spec, from: &Path) -> Result<()> {
     if !from.join("units").is_dir() || !from.join("spec.json").is_file() {
         return Err(Error::File {
@@ -61,13 +89,14 @@ pub fn check_units_from(spec: &Spec, from: &Path) -> Result<()> {
             message: "--units-from: not a search run directory (no spec.json and units/)".into(),
         });
     }
-    let (h, theirs) = (spec.results_hash(), load_spec(from)?.results_hash());
+    let (h, theirs) = (spec.units_hash(), load_spec(from)?.units_hash());
     if h != theirs {
         return Err(Error::File {
             path: from.join("spec.json"),
             message: format!(
-                "--units-from: its units were computed under another spec (results hash {theirs}, this search's {h}); \
-                 only search.strategy, search.select, the race and the stop rules may differ"
+                "--units-from: its units were computed under another spec (units hash {theirs}, this search's {h}); \
+                 only how settings are found (strategy, gene ranges, GA parameters, seeded individuals, pruning), \
+                 the validation, the selection and the stop rules may differ"
             ),
         });
     }
@@ -208,6 +237,7 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         resumed: Vec::new(),
         spec_hash: Some(spec.run_hash()),
         units_from: Vec::new(),
+        machine: Some(crate::machine::Machine::this()),
     };
     Ok((spec, info))
 }

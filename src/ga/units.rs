@@ -157,7 +157,7 @@ impl Role {
             Role::Validation => crate::rng::purpose::INIT_VALIDATION,
         }
     }
-    fn folder(self) -> &'static str {
+    pub(crate) fn folder(self) -> &'static str {
         match self {
             Role::Search => "units",
             Role::Validation => "validation",

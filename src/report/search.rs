@@ -116,13 +116,13 @@ fn fmt(v: Option<f64>) -> String {
     v.map_or("−∞".into(), |x| format!("{x:.4}"))
 }
 
-/// How the search stands, in one sentence.
-fn standing(st: Option<&RunState>, records: &[GenerationRecord]) -> String {
+/// How the search stands, in one sentence; `on` follows the wall time (the machines it ran on).
+fn standing(st: Option<&RunState>, records: &[GenerationRecord], on: &str) -> String {
     let done = records.len();
     let gens = if done == 0 { "no generation".to_string() } else { format!("{done} generations (0–{})", done - 1) };
     match st {
         Some(st) => {
-            let wall = human(st.elapsed());
+            let wall = format!("{}{on}", human(st.elapsed()));
             match st.state {
                 Phase::Finished if st.reason == format!("{} generations", st.generations) => {
                     format!("Finished after {gens}, the spec's limit. Wall time {wall}.")
@@ -177,7 +177,9 @@ pub fn write(dir: &Path) -> Result<usize> {
             String::new()
         }
     ));
-    md.push_str(&standing(state.as_ref(), &records));
+    let on = crate::machine::wall_suffix(&crate::machine::of_run(dir));
+    md.push_str(&standing(state.as_ref(), &records, &on));
+    let info: Option<crate::ga::records::RunInfo> = read_json(&dir.join("run.json")).ok();
     md.push('\n');
     if let Some(last) = records.last() {
         md.push_str(&format!(
@@ -195,7 +197,6 @@ pub fn write(dir: &Path) -> Result<usize> {
     ));
     // A generation computed entirely by the run whose units this one took (`--units-from`) has no
     // wall time of its own: say so instead of "0 s".
-    let info: Option<crate::ga::records::RunInfo> = read_json(&dir.join("run.json")).ok();
     let taken = info.as_ref().and_then(|i| i.units_from.first()).map(|u| u.dir.clone());
     let wall = |g: usize| match state.as_ref().and_then(|st| st.generation_seconds.get(g)) {
         Some(s) if *s < 0.5 && taken.is_some() && costs.get(g).is_some_and(|c| c.new_units > 0) => {

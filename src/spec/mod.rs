@@ -476,6 +476,26 @@ impl Spec {
     /// The hash of everything that determines a unit's result: the spec without its stop rules
     /// (which `search --resume --generations` may change), recorded in units and `run.json`.
     pub fn results_hash(&self) -> String {
+        self.for_results_hash().hash()
+    }
+
+    /// The hash of what decides a unit's numbers and nothing more: [`Self::results_hash`]'s
+    /// spec without the gene ranges, the GA's parameters, the seeded individuals, pruning and the
+    /// validation's size, which decide which units a search runs but not what any unit computes
+    /// (units are named and seeded by their decoded setting). Two searches of equal units hash
+    /// can share units (`search --units-from`): say, a population of 10 taking a population of 20's.
+    pub fn units_hash(&self) -> String {
+        let mut v = serde_json::to_value(self.for_results_hash()).expect("a spec serialises");
+        if let Some(search) = v.get_mut("search").and_then(|s| s.as_object_mut()) {
+            for k in ["genes", "ga", "seeded", "prune", "validate"] {
+                search.remove(k);
+            }
+        }
+        crate::store::json_hash(&v)
+    }
+
+    /// The spec as [`Self::results_hash`] hashes it.
+    fn for_results_hash(&self) -> Spec {
         let mut s = self.clone();
         // A gymnasium env's Python and timeout decide no result.
         s.env = s.env.for_hash();
@@ -492,7 +512,7 @@ impl Spec {
         // A unit's result does not depend on how its setting was found, so a random baseline
         // shares units with the GA search of the same spec (`search --units-from`).
         s.search.strategy = Strategy::Ga;
-        s.hash()
+        s
     }
 
     /// The identity a run directory records in `run.json` and checks on resume: the results hash,

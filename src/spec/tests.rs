@@ -80,3 +80,42 @@ fn claims_are_checked_with_their_path_and_do_not_change_the_results_hash() {
     assert_eq!(other.results_hash(), spec.results_hash());
     assert_ne!(other.hash(), spec.hash());
 }
+
+#[test]
+fn the_units_hash_leaves_out_what_decides_which_units_run_and_keeps_what_they_compute() {
+    let origin = Path::new("my.json");
+    let base = Spec::parse_value(BUILTIN[0].1, origin).unwrap();
+    let spec = Spec::from_value(base.clone(), origin).unwrap();
+    let with = |path: &[&str], value: serde_json::Value| {
+        let mut v = base.clone();
+        let mut at = &mut v;
+        for k in &path[..path.len() - 1] {
+            at = &mut at[*k];
+        }
+        at[path[path.len() - 1]] = value;
+        Spec::from_value(v, origin).unwrap()
+    };
+    // How settings are found and how many are validated: another run, the same units.
+    for other in [
+        with(&["search", "ga", "population"], 10.into()),
+        with(&["search", "ga", "mutation"], 0.5.into()),
+        with(&["search", "prune", "enabled"], true.into()),
+        with(&["search", "validate"], serde_json::json!({"top": 3, "datasets": 20})),
+        with(&["search", "validate"], serde_json::Value::Null),
+        with(&["search", "genes", "a_delta"], serde_json::json!([20, 99])),
+    ] {
+        assert_eq!(other.units_hash(), spec.units_hash());
+        assert_ne!(other.results_hash(), spec.results_hash(), "the run's identity still differs");
+    }
+    // What a unit computes: other numbers.
+    for other in [
+        with(&["seed"], 2.into()),
+        with(&["search", "episodes"], 300.into()),
+        with(&["search", "iterations"], 5.into()),
+        with(&["search", "datasets"], 4.into()),
+        with(&["search", "network", "hidden"], serde_json::json!([8, 8])),
+        with(&["search", "network", "max_epochs"], 100.into()),
+    ] {
+        assert_ne!(other.units_hash(), spec.units_hash());
+    }
+}
