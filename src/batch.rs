@@ -503,14 +503,7 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     ));
     // A wall time means little without the machine: the same batch runs several times longer on
     // an AVX2-only CPU than on an AVX-512 one.
-    let mut machines: Vec<String> = Vec::new();
-    for s in states {
-        for m in crate::machine::of_run(&dir.join(&s.dir)) {
-            if !machines.contains(&m) {
-                machines.push(m);
-            }
-        }
-    }
+    let machines = crate::machine::distinct(states.iter().flat_map(|s| crate::machine::of_run(&dir.join(&s.dir))));
     match machines.as_slice() {
         [] => {}
         [one] => md.push_str(&format!("Every invocation ran on {one}.\n")),

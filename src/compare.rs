@@ -459,9 +459,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     if !ids.is_empty() && ids.len() < all.len() && info_path.is_file() {
         // A comparison continued: say which binary and machine add wall time to it.
         let mut info: serde_json::Value = read_json(&info_path)?;
-        let entry = serde_json::json!({
-            "at": store::now_utc().1, "commit": env!("BFQI_GA_COMMIT"), "machine": crate::machine::Machine::this(),
-        });
+        let entry = serde_json::to_value(crate::ga::records::Resumed::now()).expect("a record serialises");
         match info.get_mut("resumed").and_then(|r| r.as_array_mut()) {
             Some(list) => list.push(entry),
             None => info["resumed"] = serde_json::json!([entry]),

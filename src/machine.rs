@@ -1,7 +1,7 @@
 //! The machine an invocation ran on, recorded beside the wall times it produced.
 //!
 //! A unit's numbers are the same on every CPU (the kernels give the same bits at every
-//! instruction-set level), but its seconds are not: the same search ran 3–7× longer on an AVX2-only
+//! instruction-set level), but its seconds are not: the same units ran 6–10× longer on an AVX2-only
 //! VM than on an AVX-512 one. So every invocation that adds wall time to a run records where it
 //! ran, and reports say it beside the times.
 
@@ -57,20 +57,17 @@ fn cpu_model(cpuinfo: Option<&str>) -> Option<String> {
 pub fn of_run(dir: &Path) -> Vec<String> {
     let Ok(info) = crate::store::read_json::<serde_json::Value>(&dir.join("run.json")) else { return Vec::new() };
     let parse = |v: Option<&serde_json::Value>| v.and_then(|m| serde_json::from_value::<Machine>(m.clone()).ok());
-    let mut all = vec![parse(info.get("machine"))];
-    if let Some(r) = info.get("resumed").and_then(|r| r.as_array()) {
-        all.extend(r.iter().map(|e| parse(e.get("machine"))));
-    }
-    distinct(all.iter().map(Option::as_ref))
+    let resumed = info.get("resumed").and_then(|r| r.as_array()).into_iter().flatten();
+    // Invocations that recorded none (runs made before machines were recorded) are left out.
+    let all = std::iter::once(info.get("machine")).chain(resumed.map(|e| e.get("machine")));
+    distinct(all.filter_map(parse).map(|m| m.label()))
 }
 
-/// The machines of a run's invocations, in order of first appearance, each once (by label): what
-/// a report prints beside a wall time. Invocations that recorded none (runs made before machines
-/// were recorded) are left out.
-pub fn distinct<'a>(machines: impl IntoIterator<Item = Option<&'a Machine>>) -> Vec<String> {
+/// Machine labels in order of first appearance, each once: what a report prints beside a wall
+/// time made of several invocations (or runs).
+pub fn distinct(labels: impl IntoIterator<Item = String>) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
-    for m in machines.into_iter().flatten() {
-        let l = m.label();
+    for l in labels {
         if !out.contains(&l) {
             out.push(l);
         }
@@ -118,9 +115,9 @@ mod tests {
     #[test]
     fn a_wall_time_names_each_machine_once_and_says_when_there_were_several() {
         let (a, b) = (machine("Xeon", "avx512", 2), machine("EPYC", "avx2", 2));
-        assert_eq!(wall_suffix(&distinct([None, None])), "");
-        assert_eq!(wall_suffix(&distinct([Some(&a), None, Some(&a)])), " on Xeon, avx512, 2 threads");
-        let two = wall_suffix(&distinct([Some(&a), Some(&b), Some(&a)]));
+        assert_eq!(wall_suffix(&distinct([])), "");
+        assert_eq!(wall_suffix(&distinct([a.label(), a.label()])), " on Xeon, avx512, 2 threads");
+        let two = wall_suffix(&distinct([a.label(), b.label(), a.label()]));
         assert_eq!(
             two,
             " on Xeon, avx512, 2 threads and EPYC, avx2, 2 threads (its invocations differ in CPU, kernels or threads)"

@@ -74,6 +74,13 @@ pub struct Resumed {
     pub machine: Option<Machine>,
 }
 
+impl Resumed {
+    /// This invocation: now, this binary's commit, this machine.
+    pub fn now() -> Resumed {
+        Resumed { at: crate::store::now_utc().1, commit: env!("BFQI_GA_COMMIT").into(), machine: Some(Machine::this()) }
+    }
+}
+
 /// Fitness from per-dataset scores: their mean, or −∞ if any run diverged.
 pub fn fitness(scores: &[Option<f64>]) -> f64 {
     let mut sum = 0.0;

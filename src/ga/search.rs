@@ -115,11 +115,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     }
     if dir.join("state.json").is_file() {
         // A run that began before: say which binary continues it.
-        info.resumed.push(Resumed {
-            at: store::now_utc().1,
-            commit: env!("BFQI_GA_COMMIT").into(),
-            machine: Some(crate::machine::Machine::this()),
-        });
+        info.resumed.push(Resumed::now());
         info.spec_hash = Some(hash);
         write_json(&path, &info)?;
     }

@@ -179,7 +179,6 @@ pub fn write(dir: &Path) -> Result<usize> {
     ));
     let on = crate::machine::wall_suffix(&crate::machine::of_run(dir));
     md.push_str(&standing(state.as_ref(), &records, &on));
-    let info: Option<crate::ga::records::RunInfo> = read_json(&dir.join("run.json")).ok();
     md.push('\n');
     if let Some(last) = records.last() {
         md.push_str(&format!(
@@ -197,6 +196,7 @@ pub fn write(dir: &Path) -> Result<usize> {
     ));
     // A generation computed entirely by the run whose units this one took (`--units-from`) has no
     // wall time of its own: say so instead of "0 s".
+    let info: Option<crate::ga::records::RunInfo> = read_json(&dir.join("run.json")).ok();
     let taken = info.as_ref().and_then(|i| i.units_from.first()).map(|u| u.dir.clone());
     let wall = |g: usize| match state.as_ref().and_then(|st| st.generation_seconds.get(g)) {
         Some(s) if *s < 0.5 && taken.is_some() && costs.get(g).is_some_and(|c| c.new_units > 0) => {
