@@ -304,8 +304,6 @@ pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<Pa
     let plan = Plan::parse(&text, plan_path)?;
     check(&plan, plan_path)?;
     let stem = plan_path.file_stem().map_or("batch".into(), |s| s.to_string_lossy().into_owned());
-    let dir = store::claim_run_dir(out, "plan.json", "a batch", &results.join("batches"), &format!("{stem}-"))?;
-    write_json(&dir.join("plan.json"), &plan)?;
     let states: Vec<JobState> = plan
         .jobs
         .iter()
@@ -319,7 +317,11 @@ pub fn create(plan_path: &Path, results: &Path, out: Option<&Path>) -> Result<Pa
             result: String::new(),
         })
         .collect();
-    write_json(&dir.join("batch.json"), &states)?;
+    // batch.json first, plan.json (what marks a batch) last.
+    let dir = store::create_run_dir(out, "plan.json", "a batch", &results.join("batches"), &format!("{stem}-"), |d| {
+        write_json(&d.join("batch.json"), &states)?;
+        write_json(&d.join("plan.json"), &plan)
+    })?;
     Ok(dir)
 }
 

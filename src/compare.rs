@@ -287,9 +287,9 @@ pub struct UnitRecord {
 pub fn prepare(spec_name: &str, r: &Request, out: Option<&Path>, results: &Path) -> Result<PathBuf> {
     let (cfg, info) = resolve(spec_name, r)?;
     let env = cfg.env.env().name();
-    let dir = store::claim_run_dir(out, "compare.json", "a comparison", &results.join(env), "compare-")?;
-    create(&dir, &cfg, &info)?;
-    Ok(dir)
+    store::create_run_dir(out, "compare.json", "a comparison", &results.join(env), "compare-", |d| {
+        create(d, &cfg, &info)
+    })
 }
 
 /// The configuration and run record a comparison would start with, validated, creating nothing.
@@ -311,11 +311,12 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
     Ok((cfg, info))
 }
 
-/// Creates a comparison run directory's configuration files.
+/// Creates a comparison run directory's configuration files: `run.json` before `compare.json`,
+/// which marks a comparison, so a comparison is never seen without its record.
 pub fn create(dir: &Path, cfg: &CompareConfig, info: &serde_json::Value) -> Result<()> {
     UnitStore::units(dir).prepare()?;
-    write_json(&dir.join("compare.json"), cfg)?;
-    write_json(&dir.join("run.json"), info)
+    write_json(&dir.join("run.json"), info)?;
+    write_json(&dir.join("compare.json"), cfg)
 }
 
 /// Loads the configuration of a comparison directory.

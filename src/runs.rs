@@ -34,18 +34,25 @@ pub fn kind(dir: &Path) -> Result<RunKind> {
     }
 }
 
-/// The run directories under `root` (searches with a `state.json`, comparisons with a
-/// `compare.json`), sorted; a run's own folders are not searched further.
+/// The run directories under `root` (searches with a `spec.json`, started or not, comparisons with
+/// a `compare.json`), sorted; a run's own folders are not searched further, nor hidden ones (a run
+/// under construction is `.<name>.tmp<pid>` until it is whole).
 pub fn find(root: &Path) -> Vec<PathBuf> {
     let mut dirs = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(d) = stack.pop() {
-        if d.join("state.json").is_file() || d.join("compare.json").is_file() {
+        if d.join("state.json").is_file() || d.join("spec.json").is_file() || d.join("compare.json").is_file() {
             dirs.push(d);
             continue;
         }
         if let Ok(entries) = std::fs::read_dir(&d) {
-            stack.extend(entries.flatten().map(|e| e.path()).filter(|p| p.is_dir()));
+            stack.extend(
+                entries
+                    .flatten()
+                    .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
+                    .map(|e| e.path())
+                    .filter(|p| p.is_dir()),
+            );
         }
     }
     dirs.sort();

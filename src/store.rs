@@ -139,9 +139,21 @@ impl<'de> serde::de::Visitor<'de> for StrictVisitor {
     }
 }
 
-/// The directory a new run writes into: `out` (created; refused if it already holds a run, i.e.
-/// has `marker`, naming the `--resume` to use instead), or a fresh `<parent>/<prefix><timestamp>`.
-pub fn claim_run_dir(out: Option<&Path>, marker: &str, what: &str, parent: &Path, prefix: &str) -> Result<PathBuf> {
+/// Creates a new run directory whole: `fill` writes its files into a temporary sibling
+/// (`.<name>.tmp<pid>`), which is then renamed into place, so a kill at any moment leaves either
+/// a run with every file `fill` writes (its `run.json` included) or no run at all. The directory is
+/// `out` (refused if it already holds a run, i.e. has `marker`, naming the `--resume` to use
+/// instead), or a fresh `<parent>/<prefix><timestamp>`. An `out` that already holds other files
+/// is filled in place, as it always was; `fill` writes the `marker` last, so there too a run is
+/// never seen without its record. Temporary siblings that killed processes left are removed.
+pub fn create_run_dir(
+    out: Option<&Path>,
+    marker: &str,
+    what: &str,
+    parent: &Path,
+    prefix: &str,
+    fill: impl FnOnce(&Path) -> Result<()>,
+) -> Result<PathBuf> {
     match out {
         Some(d) => {
             if d.join(marker).exists() {
@@ -150,10 +162,75 @@ pub fn claim_run_dir(out: Option<&Path>, marker: &str, what: &str, parent: &Path
                     message: format!("already holds {what}: use --resume {}", d.display()),
                 });
             }
-            create_dir(d)?;
+            let occupied = fs::read_dir(d).map(|mut e| e.next().is_some()).unwrap_or(false);
+            if occupied {
+                fill(d)?;
+                return Ok(d.to_path_buf());
+            }
+            let name = d.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            let up = d.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            create_dir(up)?;
+            let tmp = build_dir(up, &name, fill)?;
+            // Replaces `d` only if it is missing or empty (rename(2) refuses a non-empty one).
+            fs::rename(&tmp, d).map_err(|e| {
+                let _ = fs::remove_dir_all(&tmp);
+                Error::io(d, e)
+            })?;
             Ok(d.to_path_buf())
         }
-        None => new_run_dir(parent, prefix),
+        None => {
+            create_dir(parent)?;
+            let (stamp, _) = now_utc();
+            let tmp = build_dir(parent, &format!("{prefix}{stamp}"), fill)?;
+            for n in 1.. {
+                let name = if n == 1 { format!("{prefix}{stamp}") } else { format!("{prefix}{stamp}-{n}") };
+                let dir = parent.join(name);
+                if something_at(&dir) {
+                    continue;
+                }
+                match fs::rename(&tmp, &dir) {
+                    Ok(()) => return Ok(dir),
+                    // Taken meanwhile by another run (a whole one: it was renamed in too).
+                    Err(e) if matches!(e.raw_os_error(), Some(libc::ENOTEMPTY) | Some(libc::EEXIST)) => continue,
+                    Err(e) => {
+                        let _ = fs::remove_dir_all(&tmp);
+                        return Err(Error::io(&dir, e));
+                    }
+                }
+            }
+            unreachable!("some suffix is free")
+        }
+    }
+}
+
+/// A run directory `name` built in the temporary sibling `parent/.<name>.tmp<pid>` by `fill`;
+/// returns the sibling. Siblings of `name` left by processes that no longer exist are removed
+/// first, and this one is removed if `fill` fails.
+fn build_dir(parent: &Path, name: &str, fill: impl FnOnce(&Path) -> Result<()>) -> Result<PathBuf> {
+    remove_stale_builds(parent);
+    let tmp = parent.join(format!(".{name}.tmp{}", std::process::id()));
+    let _ = fs::remove_dir_all(&tmp);
+    fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    if let Err(e) = fill(&tmp) {
+        let _ = fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    Ok(tmp)
+}
+
+/// Removes the run directories under construction (`.<name>.tmp<pid>`) in `parent` whose process
+/// no longer exists on this host: what a kill during [`create_run_dir`] leaves. Best effort.
+fn remove_stale_builds(parent: &Path) {
+    let Ok(entries) = fs::read_dir(parent) else { return };
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp")).map(|(_, p)| p) else {
+            continue;
+        };
+        let dead = pid.parse::<u32>().is_ok_and(|p| !Path::new(&format!("/proc/{p}")).exists());
+        if dead && e.path().is_dir() {
+            let _ = fs::remove_dir_all(e.path());
+        }
     }
 }
 

@@ -280,3 +280,68 @@ fn validate_names_an_unfinished_search_and_notes_a_replaced_validation() {
     assert!(err.contains("has no hall_of_fame.json: the search has not finished a generation yet"), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
 }
+
+/// A run killed in its first milliseconds: whatever the moment, the run directory is either
+/// absent (its construction was a hidden `.<name>.tmp<pid>` sibling, removed by the next run) or
+/// whole, with its run.json, listed by `status` and continued by `--resume`.
+#[test]
+fn a_run_killed_at_its_start_is_absent_or_whole() {
+    let d = empty_dir("resume", "first-write");
+    let cmds: [(&str, Vec<String>); 2] = [
+        ("search", [vec!["search".into(), "cartpole".into()], tiny_with(&[])].concat()),
+        (
+            "compare",
+            ["compare", "cartpole", "--tuned", "thesis", "--analysis", "iterations", "--learner", "et"]
+                .iter()
+                .chain(&["--datasets", "1", "--episodes", "20", "--iterations", "2", "--quiet"])
+                .map(|s| s.to_string())
+                .collect(),
+        ),
+    ];
+    for (kind, args) in &cmds {
+        for (i, ms) in [0u64, 1, 2, 4, 8, 15, 30].into_iter().enumerate() {
+            let out = d.join(format!("{kind}-{i}"));
+            let mut child = common::spawn_quiet(bin().args(args).arg("--out").arg(&out).env("RUST_BACKTRACE", "0"));
+            std::thread::sleep(std::time::Duration::from_millis(ms));
+            child.kill().unwrap();
+            child.wait().unwrap();
+            if out.exists() {
+                assert!(out.join("run.json").is_file(), "{kind} killed at {ms} ms: {} has no run.json", out.display());
+                let _: Value = json(out.join("run.json"));
+            }
+        }
+    }
+    // What a kill leaves: runs whole or absent, and the hidden directories under construction.
+    let line = status(&d);
+    for e in std::fs::read_dir(&d).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !name.starts_with('.') {
+            assert!(line.contains(&format!("{name} ")) || line.contains(&format!("{name}\n")), "{name}: {line}");
+        }
+    }
+    assert!(!line.contains(".tmp"), "a run under construction is listed: {line}");
+
+    // A search whose directory is whole but which never wrote its state (killed before its first
+    // unit): listed as not started, and `--resume` runs it to the uninterrupted result.
+    let whole = d.join("whole");
+    assert!(search(&whole).status.success());
+    let early = d.join("early");
+    std::fs::create_dir_all(early.join("units")).unwrap();
+    for f in ["spec.json", "run.json"] {
+        std::fs::copy(whole.join(f), early.join(f)).unwrap();
+    }
+    let line = status(&early);
+    assert!(line.contains("not started") && line.contains("search --resume"), "{line}");
+    let o = resume(&early);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(scores(&early), scores(&whole));
+
+    // A directory under construction left by a dead process is removed by the next run made
+    // beside it, and `status` never lists it.
+    let stale = d.join(".next.tmp4294967295");
+    std::fs::create_dir_all(stale.join("units")).unwrap();
+    std::fs::write(stale.join("compare.json"), "{}").unwrap();
+    assert!(!status(&d).contains(".next.tmp"), "{}", status(&d));
+    assert!(search(&d.join("next")).status.success());
+    assert!(!stale.exists(), "the dead process's directory under construction was left");
+}

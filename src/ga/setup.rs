@@ -12,11 +12,12 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Creates the run directory contents of a new search.
+/// Creates the run directory contents of a new search: `run.json` before `spec.json`, which marks
+/// a search, so a search is never seen without its record.
 pub fn create(dir: &Path, spec: &Spec, info: &RunInfo) -> Result<()> {
     crate::run_dir::UnitStore::units(dir).prepare()?;
-    write_json(&dir.join("spec.json"), spec)?;
-    write_json(&dir.join("run.json"), info)
+    write_json(&dir.join("run.json"), info)?;
+    write_json(&dir.join("spec.json"), spec)
 }
 
 /// Copies into the new search in `dir` every unit of the run `from` that this search would
@@ -147,9 +148,7 @@ pub fn prepare(
     results: &Path,
 ) -> Result<PathBuf> {
     let (spec, info) = resolve(spec_name, presets, o)?;
-    let dir = store::claim_run_dir(out, "spec.json", "a run", &results.join(&info.env), "search-")?;
-    create(&dir, &spec, &info)?;
-    Ok(dir)
+    store::create_run_dir(out, "spec.json", "a run", &results.join(&info.env), "search-", |d| create(d, &spec, &info))
 }
 
 /// The spec and run record a search would start with, every layer validated, creating nothing

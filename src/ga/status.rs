@@ -13,11 +13,14 @@ use std::path::Path;
 /// One line on the run in `dir`: environment, state, generation, best fitness (and its validation),
 /// best setting, the directory, and its time or progress.
 pub fn line(dir: &Path) -> Result<String> {
-    let st: RunState = store::read_json(&dir.join("state.json"))?;
     let env = store::read_json::<serde_json::Value>(&dir.join("run.json"))
         .ok()
         .and_then(|v| v["env"].as_str().map(String::from))
         .unwrap_or_else(|| "?".into());
+    if !store::something_at(&dir.join("state.json")) {
+        return not_started(dir, &env);
+    }
+    let st: RunState = store::read_json(&dir.join("state.json"))?;
     // A run whose lock nobody holds is not running, whatever it last wrote.
     let state = match st.state {
         Phase::Running if !RunLock::is_held(dir) => Phase::Interrupted,
@@ -78,6 +81,24 @@ pub fn line(dir: &Path) -> Result<String> {
         dir.display(),
         timing,
         failed,
+        problems(dir).iter().map(|p| format!("  ! {p}")).collect::<String>()
+    ))
+}
+
+/// The line of a search created but stopped before its first state was written (a kill in its
+/// first milliseconds): `--resume` starts it.
+fn not_started(dir: &Path, env: &str) -> Result<String> {
+    let spec = load_spec(dir)?;
+    Ok(format!(
+        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}  {}  {}  not started: search --resume {} starts it{}",
+        env,
+        "not started",
+        0,
+        spec.search.stop.generations,
+        "—",
+        "—",
+        dir.display(),
+        dir.display(),
         problems(dir).iter().map(|p| format!("  ! {p}")).collect::<String>()
     ))
 }
