@@ -345,3 +345,39 @@ fn a_run_killed_at_its_start_is_absent_or_whole() {
     assert!(search(&d.join("next")).status.success());
     assert!(!stale.exists(), "the dead process's directory under construction was left");
 }
+
+/// A tiny comparison (Extra-Trees, one dataset, K = 2) in `dir`.
+fn compare(dir: &Path) -> Output {
+    bin()
+        .args(["compare", "cartpole", "--tuned", "thesis", "--analysis", "iterations", "--learner", "et"])
+        .args(["--datasets", "1", "--episodes", "20", "--iterations", "2", "--quiet", "--out"])
+        .arg(dir)
+        .output()
+        .unwrap()
+}
+
+/// `status` of a run whose spec.json or compare.json was edited says that resuming is refused,
+/// and does not also promise that resuming computes its units again.
+#[test]
+fn status_of_an_edited_configuration_does_not_promise_a_resume() {
+    let d = empty_dir("resume", "edited-config");
+    let c = d.join("compare");
+    assert!(compare(&c).status.success());
+    let mut cfg: Value = json(c.join("compare.json"));
+    cfg["seed"] = serde_json::json!(cfg["seed"].as_u64().unwrap() + 1);
+    std::fs::write(c.join("compare.json"), cfg.to_string()).unwrap();
+    let line = status(&c);
+    assert!(line.contains("compare.json: changed since the run began") && line.contains("refused"), "{line}");
+    assert!(!line.contains("--resume computes"), "{line}");
+    let o = bin().args(["compare", "--resume", c.to_str().unwrap(), "--quiet"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let s = d.join("search");
+    assert!(search(&s).status.success());
+    let mut spec: Value = json(s.join("spec.json"));
+    spec["seed"] = serde_json::json!(spec["seed"].as_u64().unwrap() + 1);
+    std::fs::write(s.join("spec.json"), spec.to_string()).unwrap();
+    let line = status(&s);
+    assert!(line.contains("spec.json: changed since the run began") && line.contains("refused"), "{line}");
+    assert!(!line.contains("resuming computes"), "{line}");
+}

@@ -10,15 +10,23 @@ use std::path::Path;
 pub fn status_line(dir: &Path) -> Result<String> {
     let c = Comparison::open(dir)?;
     let mut problems = Vec::new();
-    if let Err(e) = c.check_config(dir, "resuming or reporting it is refused") {
-        problems.push(e.to_string());
-    }
+    let changed = c.check_config(dir, "resuming and reporting are refused").err();
     let (mut done, mut bad) = (0, Vec::new());
-    for u in &c.units {
-        match c.verified(u) {
-            Ok(Some(_)) => done += 1,
-            Ok(None) => {}
-            Err(p) => bad.push(format!("{}: {p}", c.store.path(&c.cfg.unit_id(u)).display())),
+    match changed {
+        // Units are checked against the configuration the run began with, not the edited one:
+        // until compare.json is restored nothing resumes, so nothing is computed again either.
+        Some(e) => {
+            problems.push(e.to_string());
+            done = c.units.iter().filter(|u| c.store.path(&c.cfg.unit_id(u)).is_file()).count();
+        }
+        None => {
+            for u in &c.units {
+                match c.verified(u) {
+                    Ok(Some(_)) => done += 1,
+                    Ok(None) => {}
+                    Err(p) => bad.push(format!("{}: {p}", c.store.path(&c.cfg.unit_id(u)).display())),
+                }
+            }
         }
     }
     if let Some(first) = bad.first() {

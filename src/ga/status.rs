@@ -112,15 +112,19 @@ fn problems(dir: &Path) -> Vec<String> {
         Ok(s) => s,
         Err(e) => return vec![e.to_string()],
     };
-    let mut out = Vec::new();
     let recorded = store::read_json::<RunInfo>(&dir.join("run.json")).ok().and_then(|i| i.spec_hash);
-    if let Some(h) = recorded.filter(|h| *h != spec.results_hash()) {
-        out.push(format!(
-            "{}: changed since the run began (results hash {}, run.json records {h}): resuming is refused",
+    // The hash `--resume` checks (a random search's carries its strategy).
+    if let Some(h) = recorded.filter(|h| *h != spec.run_hash()) {
+        // Its units are checked against the spec the run began with, not the edited one: until
+        // spec.json is restored, nothing resumes, so nothing is computed again either.
+        return vec![format!(
+            "{}: changed since the run began (results hash {}, run.json records {h}): resuming and reporting are \
+             refused until it is restored",
             dir.join("spec.json").display(),
-            spec.results_hash()
-        ));
+            spec.run_hash()
+        )];
     }
+    let mut out = Vec::new();
     for role in [Role::Search, Role::Validation] {
         let bad = Evaluator::with_role(spec.clone(), dir, role).unverified();
         if let Some((path, problem)) = bad.first() {
