@@ -306,7 +306,7 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": r.analysis, "learner": r.learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
-        "config_hash": cfg.results_hash(), "machine": crate::machine::Machine::this(),
+        "config_hash": cfg.results_hash(), "checksummed": true, "machine": crate::machine::Machine::this(),
     });
     Ok((cfg, info))
 }
@@ -336,13 +336,20 @@ pub struct Comparison {
     cfg: CompareConfig,
     units: Vec<Unit>,
     store: UnitStore,
+    /// `run.json` says every unit carries a checksum ([`crate::ga::units::checksummed`]).
+    checksummed: bool,
 }
 
 impl Comparison {
     /// The comparison in `dir` (its `compare.json`).
     pub fn open(dir: &Path) -> Result<Self> {
         let cfg = load(dir)?;
-        Ok(Comparison { units: cfg.units(), cfg, store: UnitStore::units(dir) })
+        Ok(Comparison {
+            units: cfg.units(),
+            cfg,
+            store: UnitStore::units(dir),
+            checksummed: crate::ga::units::checksummed(dir),
+        })
     }
 
     /// Its configuration.
@@ -360,8 +367,9 @@ impl Comparison {
     }
 
     /// A unit's stored result: `Ok(None)` if there is no file, `Err` with what is wrong if it does
-    /// not parse, holds another dataset, or its checksum or configuration hash disagrees (units
-    /// written before these were recorded carry neither and are read as before).
+    /// not parse, holds another dataset, its checksum or configuration hash disagrees, or it has
+    /// no checksum in a run whose `run.json` says every unit has one (units of older runs carry
+    /// neither and are read as before).
     pub fn verified(&self, u: &Unit) -> std::result::Result<Option<DatasetResult>, String> {
         let path = self.store.path(&self.cfg.unit_id(u));
         if !path.is_file() {
@@ -371,8 +379,12 @@ impl Comparison {
         if r.dataset != u.dataset {
             return Err(format!("holds dataset {}, not {}", r.dataset, u.dataset));
         }
-        if r.checksum.as_ref().is_some_and(|c| *c != r.content_checksum()) {
-            return Err("its checksum does not match its content (damaged or edited)".into());
+        match &r.checksum {
+            Some(c) if *c != r.content_checksum() => {
+                return Err("its checksum does not match its content (damaged or edited)".into());
+            }
+            None if self.checksummed => return Err(crate::ga::units::MISSING_CHECKSUM.into()),
+            _ => {}
         }
         match &r.spec_hash {
             Some(h) if *h != self.cfg.run_config(u).hash() => Err(format!(
@@ -484,6 +496,40 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
         None if missing > 0 => Ending::Stopped(Stop::Missing(missing)),
         None => Ending::Finished(format!("all {} units", all.len())),
     })
+}
+
+/// Gives every unit of the comparison in `dir` that verifies and has no checksum its checksum, and
+/// its configuration hash where it has none, writing the unit's content unchanged; then records
+/// `config_hash` (if missing) and `checksummed` in `run.json`, so that from then on a unit without
+/// a checksum is damaged. For comparisons made before every unit carried one (the thesis
+/// references). Refused if `compare.json` changed since the run began. Call it with the run's
+/// lock held.
+pub fn stamp(dir: &Path) -> Result<crate::run_dir::Stamped> {
+    let c = Comparison::open(dir)?;
+    c.check_config(dir, "stamping would vouch for units of another configuration")?;
+    let mut done = crate::run_dir::Stamped::default();
+    for u in &c.units {
+        let path = c.store.path(&c.cfg.unit_id(u));
+        match c.verified(u) {
+            Ok(Some(mut r)) if r.checksum.is_none() => {
+                r.spec_hash.get_or_insert_with(|| c.cfg.run_config(u).hash());
+                r.checksum = Some(r.content_checksum());
+                write_json(&path, &r)?;
+                done.stamped += 1;
+            }
+            Ok(Some(_)) => done.already += 1,
+            Ok(None) => {}
+            Err(problem) => done.unverified.push((path, problem)),
+        }
+    }
+    let info_path = dir.join("run.json");
+    let mut info: serde_json::Value = if info_path.is_file() { read_json(&info_path)? } else { serde_json::json!({}) };
+    if info["config_hash"].as_str().is_none() {
+        info["config_hash"] = c.cfg.results_hash().into();
+    }
+    info["checksummed"] = true.into();
+    write_json(&info_path, &info)?;
+    Ok(done)
 }
 
 /// Reads every unit of a finished comparison, refusing a `compare.json` changed since the run

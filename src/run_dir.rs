@@ -84,6 +84,19 @@ pub trait Units: Sync {
     fn compute(&self, id: &str) -> Result<()>;
 }
 
+/// What `bfqi-ga stamp` did to a run made before every unit carried a checksum.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stamped {
+    /// Units that verified and had no checksum: given one (and their run's hash where they lacked
+    /// it), their content unchanged.
+    pub stamped: usize,
+    /// Units that carried a checksum already.
+    pub already: usize,
+    /// Units that do not verify, each with its path and what is wrong: left as they are, computed
+    /// again on resume.
+    pub unverified: Vec<(PathBuf, String)>,
+}
+
 /// Why a run stopped before its end; it resumes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Stop {

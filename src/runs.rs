@@ -68,6 +68,17 @@ pub fn status_line(dir: &Path) -> Result<String> {
     }
 }
 
+/// Stamps the run in `dir` (`bfqi-ga stamp`): its units without a checksum that verify get one,
+/// and its `run.json` says from then on that every unit has one ([`crate::ga::search::stamp`],
+/// [`crate::compare::stamp`]). Under the run's lock, so never beside a run writing units.
+pub fn stamp(dir: &Path) -> Result<crate::run_dir::Stamped> {
+    let _lock = crate::store::RunLock::acquire(dir)?;
+    match kind(dir)? {
+        RunKind::Search => crate::ga::search::stamp(dir),
+        RunKind::Compare => crate::compare::stamp(dir),
+    }
+}
+
 /// The units of the run in `dir` stored in its folder `folder`: `units` (a search's or a
 /// comparison's), or `validation` (a search's validation units).
 pub fn units(dir: &Path, folder: &str) -> Result<Box<dyn Units>> {

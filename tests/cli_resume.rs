@@ -381,3 +381,73 @@ fn status_of_an_edited_configuration_does_not_promise_a_resume() {
     assert!(line.contains("spec.json: changed since the run began") && line.contains("refused"), "{line}");
     assert!(!line.contains("resuming computes"), "{line}");
 }
+
+/// Removes `key` from a JSON file, written back as the tool writes it.
+fn strip(path: &Path, key: &str) {
+    let mut v: Value = json(path);
+    v.as_object_mut().unwrap().remove(key);
+    std::fs::write(path, serde_json::to_string_pretty(&v).unwrap() + "\n").unwrap();
+}
+
+fn unit_files(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = ["units", "validation"]
+        .iter()
+        .flat_map(|f| std::fs::read_dir(dir.join(f)).into_iter().flatten().flatten().map(|e| e.path()))
+        .collect();
+    v.sort();
+    v
+}
+
+/// In a run created with checksums, a unit without one is damaged; a run made before them (no
+/// `checksummed` in run.json) reads its units as before until `bfqi-ga stamp` gives them their
+/// checksums, exactly as a run would have written them.
+#[test]
+fn a_unit_without_its_checksum_is_damaged_in_a_checksummed_run() {
+    let d = empty_dir("resume", "checksums");
+    for (kind, make) in [("search", search as fn(&Path) -> Output), ("compare", compare)] {
+        let whole = d.join(kind);
+        let o = make(&whole);
+        assert!(o.status.success(), "{kind}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(json(whole.join("run.json"))["checksummed"], true, "{kind}");
+        assert!(!status(&whole).contains('!'), "{}", status(&whole));
+
+        // The checksum line deleted from one unit: status and resume see it.
+        let cut = d.join(format!("{kind}-cut"));
+        copy_dir(&whole, &cut);
+        let unit = unit_files(&cut)[0].clone();
+        strip(&unit, "checksum");
+        let line = status(&cut);
+        assert!(line.contains("1 stored unit does not verify") && line.contains("has no checksum"), "{line}");
+        let o = if kind == "search" {
+            resume(&cut)
+        } else {
+            bin().args(["compare", "--resume", cut.to_str().unwrap(), "--quiet"]).output().unwrap()
+        };
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success() && err.contains("has no checksum") && err.contains("computed again"), "{err}");
+        assert!(json(&unit)["checksum"].is_string(), "{}: computed again, with its checksum", unit.display());
+
+        // The same run as an older binary wrote it: no checksums, no mark. Trusted as before, then
+        // stamped back to the very bytes a run writes.
+        let old = d.join(format!("{kind}-old"));
+        copy_dir(&whole, &old);
+        for u in unit_files(&old) {
+            strip(&u, "checksum");
+            strip(&u, "spec_hash");
+        }
+        strip(&old.join("run.json"), "checksummed");
+        assert!(!status(&old).contains('!'), "an unmarked run's units are read as before: {}", status(&old));
+        let o = bin().arg("stamp").arg(&old).output().unwrap();
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(o.status.success(), "{out}{}", String::from_utf8_lossy(&o.stderr));
+        let n = unit_files(&whole).len();
+        assert!(out.contains(&format!("{n} unit(s) stamped")), "{out}");
+        for u in unit_files(&whole) {
+            assert_eq!(read(&u), read(old.join(u.strip_prefix(&whole).unwrap())), "{}", u.display());
+        }
+        assert_eq!(json(old.join("run.json"))["checksummed"], true);
+        // From then on a deleted checksum is seen.
+        strip(&unit_files(&old)[0], "checksum");
+        assert!(status(&old).contains("has no checksum"), "{}", status(&old));
+    }
+}

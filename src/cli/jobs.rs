@@ -150,6 +150,13 @@ pub struct StatusArgs {
     pub dir: PathBuf,
 }
 
+/// `bfqi-ga stamp`.
+#[derive(Debug, Args)]
+pub struct StampArgs {
+    /// A search or comparison run directory.
+    pub dir: PathBuf,
+}
+
 /// `bfqi-ga report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -306,6 +313,25 @@ pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
             // One damaged run must not hide the others.
             Err(e) => eprintln!("warning: skipped {e}"),
         }
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn stamp(a: StampArgs) -> Result<Outcome> {
+    let s = crate::runs::stamp(&a.dir)?;
+    println!(
+        "{}: {} unit(s) stamped, {} had a checksum; run.json says checksummed",
+        a.dir.display(),
+        s.stamped,
+        s.already
+    );
+    if let Some((path, problem)) = s.unverified.first() {
+        // Not vouched for: left to be computed again on resume, as before.
+        println!(
+            "{} unit(s) do not verify and were left unstamped (first {}: {problem}); resuming computes them again",
+            s.unverified.len(),
+            path.display()
+        );
     }
     Ok(Outcome::Success)
 }

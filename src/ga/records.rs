@@ -36,6 +36,11 @@ pub struct RunInfo {
     /// runs created before it was): a resume refuses a spec.json changed since.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spec_hash: Option<String>,
+    /// Every unit of the run carries a checksum: one that lacks it is damaged or edited, and is
+    /// computed again. Set by runs created since checksums exist and by `bfqi-ga stamp`; units of
+    /// an unmarked (older) run without one are read as before.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub checksummed: bool,
     /// Runs whose units this one took at its start (`search --units-from`), and how many.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub units_from: Vec<SharedUnits>,

@@ -20,7 +20,9 @@ pub use super::records::{
 };
 pub use super::reproduce::{Reproduction, reproduce};
 use super::runner::{Clock, Runner, StateInfo, write_state};
-pub use super::setup::{SearchOverrides, check_units_from, create, extend, load_spec, prepare, resolve, share_units};
+pub use super::setup::{
+    SearchOverrides, check_units_from, create, extend, load_spec, prepare, resolve, share_units, stamp,
+};
 use super::units::setting_id;
 pub use super::units::{Evaluator, UnitResult, describe, parse_unit_id, unit_id};
 use crate::error::{Error, Result};

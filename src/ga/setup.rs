@@ -62,6 +62,13 @@ fn copy_units(spec: &Spec, source: &Spec, dir: &Path, from: &Path, role: super::
         // thesis-sized searches') are taken on their run's spec.json, checked above.
         let Some(mut unit) = theirs.load_unit(&id) else { continue };
         match &unit.spec_hash {
+            // A unit of an older run without a checksum: stamped too, as every unit of this run
+            // carries one.
+            _ if unit.checksum.is_none() => {
+                unit.spec_hash = Some(ours_hash.clone());
+                unit.checksum = Some(unit.content_checksum());
+                write_json(&ours.unit_path(&id), &unit)?;
+            }
             Some(h) if *h != ours_hash => {
                 // Computed under a results hash that differs from ours only in what decides no
                 // unit's numbers (the units hashes agree): stamped with ours, so this run verifies it.
@@ -79,6 +86,48 @@ fn copy_units(spec: &Spec, source: &Spec, dir: &Path, from: &Path, role: super::
         copied += 1;
     }
     Ok(copied)
+}
+
+/// Gives every unit of the search in `dir` (search and validation units) that verifies and has no
+/// checksum its checksum, and its run's results hash where it has none, writing the unit's
+/// content unchanged; then marks `run.json` `checksummed`, so that from then on a unit without a
+/// checksum is damaged. For runs made before every unit carried one (the committed references).
+/// Refused if `spec.json` changed since the run began. Call it with the run's lock held.
+pub fn stamp(dir: &Path) -> Result<crate::run_dir::Stamped> {
+    use super::units::{Evaluator, Role};
+    let spec = load_spec(dir)?;
+    let path = dir.join("run.json");
+    let mut info: RunInfo = store::read_json(&path)?;
+    let hash = spec.run_hash();
+    if let Some(h) = info.spec_hash.as_ref().filter(|h| **h != hash) {
+        return Err(Error::File {
+            path: dir.join("spec.json"),
+            message: format!(
+                "changed since the run began (results hash {hash}, run.json records {h}): stamping would vouch for \
+                 units of another spec; restore it"
+            ),
+        });
+    }
+    let mut done = crate::run_dir::Stamped::default();
+    for role in [Role::Search, Role::Validation] {
+        let ev = Evaluator::with_role(spec.clone(), dir, role);
+        for id in crate::run_dir::UnitStore::named(dir, role.folder()).ids() {
+            match ev.verified(&id) {
+                Ok(Some(mut u)) if u.checksum.is_none() => {
+                    u.spec_hash.get_or_insert_with(|| spec.results_hash());
+                    u.checksum = Some(u.content_checksum());
+                    write_json(&ev.unit_path(&id), &u)?;
+                    done.stamped += 1;
+                }
+                Ok(_) => done.already += 1,
+                Err(problem) => done.unverified.push((ev.unit_path(&id), problem)),
+            }
+        }
+    }
+    info.spec_hash.get_or_insert(hash);
+    info.checksummed = true;
+    write_json(&path, &info)?;
+    Ok(done)
 }
 
 /// Refuses `--units-from` a directory that is not a search run, or whose units were computed
@@ -235,6 +284,7 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         commit: env!("BFQI_GA_COMMIT").into(),
         resumed: Vec::new(),
         spec_hash: Some(spec.run_hash()),
+        checksummed: true,
         units_from: Vec::new(),
         machine: Some(crate::machine::Machine::this()),
     };

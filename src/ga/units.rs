@@ -60,6 +60,20 @@ impl UnitResult {
     }
 }
 
+/// What a unit without a checksum is in a run whose units all carry one.
+pub(crate) const MISSING_CHECKSUM: &str =
+    "it has no checksum, which every unit of this run carries (damaged or edited; run.json says checksummed)";
+
+/// Whether the run in `dir` says every unit carries a checksum (`run.json`'s `checksummed`): runs
+/// created since checksums exist, and runs stamped by `bfqi-ga stamp`. A unit of such a run without
+/// one is damaged; a unit of an older, unmarked run without one is read as before.
+pub fn checksummed(dir: &Path) -> bool {
+    crate::store::read_json::<serde_json::Value>(&dir.join("run.json"))
+        .ok()
+        .and_then(|v| v["checksummed"].as_bool())
+        .unwrap_or(false)
+}
+
 /// The activation's name in unit ids and files.
 pub fn activation_name(a: Activation) -> &'static str {
     match a {
@@ -171,6 +185,8 @@ pub struct Evaluator {
     results_hash: String,
     store: UnitStore,
     role: Role,
+    /// The run's `run.json` says every unit carries a checksum ([`checksummed`]).
+    checksummed: bool,
     data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
     warned: Mutex<std::collections::HashSet<String>>,
 }
@@ -188,6 +204,7 @@ impl Evaluator {
             spec,
             store: UnitStore::named(dir, role.folder()),
             role,
+            checksummed: checksummed(dir),
             data: Mutex::new(HashMap::new()),
             warned: Mutex::new(Default::default()),
         }
@@ -372,8 +389,12 @@ impl Evaluator {
         if unit_id(&u.setting, u.dataset) != id {
             return Some(format!("holds unit {}", unit_id(&u.setting, u.dataset)));
         }
-        if u.checksum.as_ref().is_some_and(|c| *c != u.content_checksum()) {
-            return Some("its checksum does not match its content (damaged or edited)".into());
+        match &u.checksum {
+            Some(c) if *c != u.content_checksum() => {
+                return Some("its checksum does not match its content (damaged or edited)".into());
+            }
+            None if self.checksummed => return Some(MISSING_CHECKSUM.into()),
+            _ => {}
         }
         match &u.spec_hash {
             Some(h) if *h != self.results_hash => Some(format!("computed under another spec (hash {h})")),
