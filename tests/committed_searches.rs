@@ -85,6 +85,33 @@ fn comparison_reports_rebuild_identically_from_their_units() {
     }
 }
 
+/// Every committed run is stamped (`bfqi-ga stamp`): its run.json says `checksummed` and every unit
+/// carries a checksum, which `status` verifies, so an edited unit or a deleted checksum line is seen.
+#[test]
+fn every_committed_unit_carries_its_checksum() {
+    let results = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results");
+    let mut units = std::collections::BTreeMap::new();
+    for group in ["thesis", "searches"] {
+        for dir in std::fs::read_dir(results.join(group)).unwrap().flatten().map(|e| e.path()) {
+            if !dir.join("compare.json").is_file() && !dir.join("spec.json").is_file() {
+                continue;
+            }
+            assert_eq!(json(dir.join("run.json"))["checksummed"], true, "{}: not stamped", dir.display());
+            for folder in ["units", "validation"] {
+                for f in std::fs::read_dir(dir.join(folder)).into_iter().flatten().flatten().map(|e| e.path()) {
+                    assert!(json(&f)["checksum"].is_string(), "{}: no checksum", f.display());
+                    *units.entry(group).or_insert(0) += 1;
+                }
+            }
+        }
+    }
+    assert!(units["thesis"] >= 2980, "{units:?}");
+    let o = bin().arg("status").arg(&results).output().unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success() && !out.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!out.contains(" ! "), "a committed run does not verify:\n{out}");
+}
+
 #[test]
 fn a_record_that_disagrees_with_its_unit_is_refused() {
     let (name, dir) = searches().into_iter().next().expect("a committed search");
