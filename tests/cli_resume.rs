@@ -169,8 +169,37 @@ fn reproduce_rederives_every_stored_field() {
         &|b| b["scores"].as_array_mut().unwrap().push(serde_json::json!(1.0)),
         "scores: stored 3 values",
     );
+    // Its validation block (the quick preset validates the top 3 on 3 datasets) is re-derived too.
+    assert!(best["validation"].is_object(), "{best}");
+    check(
+        "validation-score.json",
+        &|b| {
+            let x = b["validation"]["scores"][1].as_f64().unwrap() + 0.5;
+            b["validation"]["scores"][1] = serde_json::json!(x);
+        },
+        "validation dataset 1: recorded",
+    );
+    check(
+        "validation-mean.json",
+        &|b| {
+            let x = b["validation"]["summary"]["mean"].as_f64().unwrap() + 0.5;
+            b["validation"]["summary"]["mean"] = serde_json::json!(x);
+        },
+        "validation.summary: stored",
+    );
+    check(
+        "validation-count.json",
+        &|b| b["validation"]["datasets"] = serde_json::json!(1),
+        "validation.scores: stored 3 values, validation.datasets says 1",
+    );
     let o = bin().args(["reproduce", run.join("best.json").to_str().unwrap()]).output().unwrap();
-    assert!(o.status.success(), "the untouched best.json reproduces");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "the untouched best.json reproduces: {out}");
+    assert!(out.contains("validation: 3 datasets re-derived"), "{out}");
+    // Skipped on request, and then said to be unchecked.
+    let o = bin().args(["reproduce", "--skip-validation", d.join("validation-score.json").to_str().unwrap()]).output();
+    let out = String::from_utf8_lossy(&o.as_ref().unwrap().stdout).into_owned();
+    assert!(o.unwrap().status.success() && out.contains("validation: not checked"), "{out}");
 }
 
 #[test]
@@ -356,32 +385,6 @@ fn compare(dir: &Path) -> Output {
         .unwrap()
 }
 
-/// `status` of a run whose spec.json or compare.json was edited says that resuming is refused,
-/// and does not also promise that resuming computes its units again.
-#[test]
-fn status_of_an_edited_configuration_does_not_promise_a_resume() {
-    let d = empty_dir("resume", "edited-config");
-    let c = d.join("compare");
-    assert!(compare(&c).status.success());
-    let mut cfg: Value = json(c.join("compare.json"));
-    cfg["seed"] = serde_json::json!(cfg["seed"].as_u64().unwrap() + 1);
-    std::fs::write(c.join("compare.json"), cfg.to_string()).unwrap();
-    let line = status(&c);
-    assert!(line.contains("compare.json: changed since the run began") && line.contains("refused"), "{line}");
-    assert!(!line.contains("--resume computes"), "{line}");
-    let o = bin().args(["compare", "--resume", c.to_str().unwrap(), "--quiet"]).output().unwrap();
-    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
-
-    let s = d.join("search");
-    assert!(search(&s).status.success());
-    let mut spec: Value = json(s.join("spec.json"));
-    spec["seed"] = serde_json::json!(spec["seed"].as_u64().unwrap() + 1);
-    std::fs::write(s.join("spec.json"), spec.to_string()).unwrap();
-    let line = status(&s);
-    assert!(line.contains("spec.json: changed since the run began") && line.contains("refused"), "{line}");
-    assert!(!line.contains("resuming computes"), "{line}");
-}
-
 /// Removes `key` from a JSON file, written back as the tool writes it.
 fn strip(path: &Path, key: &str) {
     let mut v: Value = json(path);
@@ -450,4 +453,30 @@ fn a_unit_without_its_checksum_is_damaged_in_a_checksummed_run() {
         strip(&unit_files(&old)[0], "checksum");
         assert!(status(&old).contains("has no checksum"), "{}", status(&old));
     }
+}
+
+/// `status` of a run whose spec.json or compare.json was edited says that resuming is refused,
+/// and does not also promise that resuming computes its units again.
+#[test]
+fn status_of_an_edited_configuration_does_not_promise_a_resume() {
+    let d = empty_dir("resume", "edited-config");
+    let c = d.join("compare");
+    assert!(compare(&c).status.success());
+    let mut cfg: Value = json(c.join("compare.json"));
+    cfg["seed"] = serde_json::json!(cfg["seed"].as_u64().unwrap() + 1);
+    std::fs::write(c.join("compare.json"), cfg.to_string()).unwrap();
+    let line = status(&c);
+    assert!(line.contains("compare.json: changed since the run began") && line.contains("refused"), "{line}");
+    assert!(!line.contains("--resume computes"), "{line}");
+    let o = bin().args(["compare", "--resume", c.to_str().unwrap(), "--quiet"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+
+    let s = d.join("search");
+    assert!(search(&s).status.success());
+    let mut spec: Value = json(s.join("spec.json"));
+    spec["seed"] = serde_json::json!(spec["seed"].as_u64().unwrap() + 1);
+    std::fs::write(s.join("spec.json"), spec.to_string()).unwrap();
+    let line = status(&s);
+    assert!(line.contains("spec.json: changed since the run began") && line.contains("refused"), "{line}");
+    assert!(!line.contains("resuming computes"), "{line}");
 }

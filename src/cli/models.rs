@@ -15,6 +15,10 @@ use std::path::{Path, PathBuf};
 pub struct ReproduceArgs {
     /// A search's best.json.
     pub best: PathBuf,
+    /// Leave its `validation` block unchecked (by default its validation scores are computed
+    /// again too, which costs as many units as the validation had).
+    #[arg(long)]
+    pub skip_validation: bool,
 }
 
 /// `bfqi-ga fitness`.
@@ -92,9 +96,18 @@ fn show(v: Option<f64>) -> String {
 
 pub(super) fn reproduce(a: ReproduceArgs) -> Result<Outcome> {
     let t = TunedConfig::load(&a.best)?;
-    let r = crate::ga::search::reproduce(&t, &a.best)?;
+    let r = crate::ga::search::reproduce(&t, &a.best, !a.skip_validation)?;
+    let validation = match (r.validation_datasets, &t.validation) {
+        (Some(n), _) => format!("; validation: {n} datasets re-derived"),
+        (None, Some(_)) => "; validation: not checked (--skip-validation)".into(),
+        (None, None) => String::new(),
+    };
     if r.matches() {
-        println!("reproduced: fitness {} matches bit for bit ({} datasets)", show(r.derived), t.scores.len());
+        println!(
+            "reproduced: fitness {} matches bit for bit ({} datasets){validation}",
+            show(r.derived),
+            t.scores.len()
+        );
         return Ok(Outcome::Success);
     }
     println!("NOT reproduced: recorded fitness {}, derived {}", show(r.recorded), show(r.derived));
@@ -103,6 +116,9 @@ pub(super) fn reproduce(a: ReproduceArgs) -> Result<Outcome> {
     }
     for (d, rec, der) in &r.differences {
         println!("  dataset {d}: recorded {}, derived {}", show(*rec), show(*der));
+    }
+    for (d, rec, der) in &r.validation_differences {
+        println!("  validation dataset {d}: recorded {}, derived {}", show(*rec), show(*der));
     }
     Ok(Outcome::Failed)
 }

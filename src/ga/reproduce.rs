@@ -2,7 +2,7 @@
 
 use super::chromosome::decode;
 use super::records::{finite, fitness};
-use super::units::Evaluator;
+use super::units::{Evaluator, Role};
 use crate::error::{Error, Result};
 use crate::tuned::TunedConfig;
 use std::path::Path;
@@ -18,19 +18,33 @@ pub struct Reproduction {
     pub differences: Vec<(usize, Option<f64>, Option<f64>)>,
     /// Stored fields that disagree with what the spec and chromosome give (an edited best.json).
     pub mismatches: Vec<String>,
+    /// Validation datasets re-derived (best.json's `validation` block), when it has one and it
+    /// was checked.
+    pub validation_datasets: Option<usize>,
+    /// Per validation dataset: (index, recorded, derived) where they differ.
+    pub validation_differences: Vec<(usize, Option<f64>, Option<f64>)>,
 }
 
 impl Reproduction {
     /// True when every score matches bit for bit.
     pub fn matches(&self) -> bool {
         self.differences.is_empty()
+            && self.validation_differences.is_empty()
             && self.mismatches.is_empty()
             && self.recorded.map(f64::to_bits) == self.derived.map(f64::to_bits)
     }
 }
 
-/// Re-derives a tuned config's fitness from scratch (no stored unit is read).
-pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
+/// A value as its file spells it (`tanh`, `per_action`), not as Rust's debug form (`Tanh`).
+fn named<T: serde::Serialize>(v: &T) -> String {
+    serde_json::to_value(v).map(|v| v.as_str().map_or_else(|| v.to_string(), String::from)).unwrap_or_default()
+}
+
+/// Re-derives a tuned config's fitness from scratch (no stored unit is read), and with
+/// `validation` its `validation` block too: the scores on the validation datasets (computed
+/// again, as the validation computed them), their count and their summary. The block's `note`,
+/// which compares the setting with the other validated ones, is not re-derived.
+pub fn reproduce(t: &TunedConfig, path: &Path, validation: bool) -> Result<Reproduction> {
     use rayon::prelude::*;
     let (Some(spec), Some(c)) = (&t.spec, &t.chromosome) else {
         return Err(Error::File {
@@ -60,27 +74,68 @@ pub fn reproduce(t: &TunedConfig, path: &Path) -> Result<Reproduction> {
             mismatches.push(format!("{field}: stored {stored}, the spec and chromosome give {derived}"));
         }
     };
-    differs("activation", format!("{:?}", t.activation), format!("{:?}", setting.activation));
+    differs("activation", named(&t.activation), named(&setting.activation));
     differs("delta_min", format!("{:?}", t.delta_min), format!("{:?}", setting.delta_min));
     differs("patience", t.patience.to_string(), setting.patience.to_string());
     let network = |n: &crate::learn::mlp::MlpParams| serde_json::to_string(n).unwrap_or_default();
     differs("network", network(&t.network), network(&ev.network(&setting)));
     differs("algorithm", t.algorithm.name().into(), s.algorithm.name().into());
-    differs("actions", format!("{:?}", t.actions), format!("{:?}", s.actions));
+    differs("actions", named(&t.actions), named(&s.actions));
     differs("iterations", t.iterations.to_string(), s.iterations.to_string());
     differs("episodes", t.episodes.to_string(), s.episodes.to_string());
     differs("datasets", t.datasets.to_string(), s.datasets.to_string());
     differs("scores", format!("{} values", t.scores.len()), format!("{} values", s.datasets));
     differs("seed", t.seed.to_string(), spec.seed.to_string());
-    let scores: Vec<Option<f64>> = (0..spec.search.datasets)
-        .into_par_iter()
-        .map(|d| ev.evaluate(&setting, d).map(|u| u.score))
-        .collect::<Result<_>>()?;
-    let differences = scores
-        .iter()
-        .enumerate()
-        .filter(|(d, s)| t.scores.get(*d).copied().flatten().map(f64::to_bits) != s.map(f64::to_bits))
-        .map(|(d, s)| (d, t.scores.get(d).copied().flatten(), *s))
+    let checked = t.validation.as_ref().filter(|_| validation);
+    if let Some(v) = checked {
+        // A raced setting has a prefix of the validation datasets: at least one, at most all.
+        if v.scores.is_empty() || v.scores.len() > v.datasets {
+            mismatches.push(format!(
+                "validation.scores: stored {} values, validation.datasets says {} (1 to that many)",
+                v.scores.len(),
+                v.datasets
+            ));
+        }
+        let recorded: Option<Vec<f64>> = v.scores.iter().copied().collect();
+        let summary = recorded.and_then(|s| crate::stats::summarize(&s));
+        if v.summary != summary {
+            let json = |s: &Option<crate::stats::Summary>| serde_json::to_string(s).unwrap_or_default();
+            mismatches.push(format!(
+                "validation.summary: stored {}, its scores give {}",
+                json(&v.summary),
+                json(&summary)
+            ));
+        }
+    }
+    // The search's datasets and the validation's, all units at once.
+    let n_validation = checked.map_or(0, |v| v.scores.len().min(crate::limits::DATASETS));
+    let validation_ev = Evaluator::with_role(spec.clone(), Path::new("."), Role::Validation);
+    let units: Vec<(Role, usize)> = (0..spec.search.datasets)
+        .map(|d| (Role::Search, d))
+        .chain((0..n_validation).map(|d| (Role::Validation, d)))
         .collect();
-    Ok(Reproduction { recorded: t.fitness, derived: finite(fitness(&scores)), differences, mismatches })
+    let all: Vec<Option<f64>> = units
+        .into_par_iter()
+        .map(|(role, d)| {
+            let ev = if role == Role::Search { &ev } else { &validation_ev };
+            ev.evaluate(&setting, d).map(|u| u.score)
+        })
+        .collect::<Result<_>>()?;
+    let (scores, validation_scores) = all.split_at(spec.search.datasets);
+    let differing = |stored: &[Option<f64>], derived: &[Option<f64>]| -> Vec<(usize, Option<f64>, Option<f64>)> {
+        derived
+            .iter()
+            .enumerate()
+            .filter(|(d, s)| stored.get(*d).copied().flatten().map(f64::to_bits) != s.map(f64::to_bits))
+            .map(|(d, s)| (d, stored.get(d).copied().flatten(), *s))
+            .collect()
+    };
+    Ok(Reproduction {
+        recorded: t.fitness,
+        derived: finite(fitness(scores)),
+        differences: differing(&t.scores, scores),
+        mismatches,
+        validation_datasets: checked.map(|_| n_validation),
+        validation_differences: checked.map_or(Vec::new(), |v| differing(&v.scores, validation_scores)),
+    })
 }
