@@ -48,7 +48,7 @@ _PREFIX = struct.Struct("<IQ")
 
 
 class WorkerError(Exception):
-    """A request that cannot be served; `kind` says why (make, space, env, protocol)."""
+    """A request that cannot be served; `kind` says why (make, space, env, reset, protocol)."""
 
     def __init__(self, kind, message):
         super().__init__(message)
@@ -207,6 +207,16 @@ class Worker:
             return int(a[0])
         return np.asarray(a, dtype=self.act["dtype"]).reshape(self.act["shape"])
 
+    def _reset(self, env, seed, options):
+        """env.reset with the spec's options; a failure with options given is blamed on them
+        (kind `reset`), so the tool can name the spec field that holds them."""
+        if options is None:
+            return env.reset(seed=seed)
+        try:
+            return env.reset(seed=seed, options=options)
+        except Exception as e:  # noqa: BLE001 - the env refusing the user's options
+            raise WorkerError("reset", f"reset(options={json.dumps(options)}) raised {one_line(e)}") from None
+
     def _need_open(self):
         if self.make_args is None:
             raise WorkerError("protocol", "no env open")
@@ -222,7 +232,7 @@ class Worker:
         terminated = np.zeros(len(seeds), dtype=np.uint8)
         obs, rewards = [], []
         for e, seed in enumerate(seeds):
-            o, _ = env.reset(seed=int(seed), options=options)
+            o, _ = self._reset(env, int(seed), options)
             obs.append(self._obs(o))
             t = 0
             while t < horizon:
@@ -249,7 +259,7 @@ class Worker:
 
         self._need_open()
         options = h.get("options")
-        out = [self._obs(self.env(i).reset(seed=int(s), options=options)[0]) for i, s in enumerate(arrays["seeds"])]
+        out = [self._obs(self._reset(self.env(i), int(s), options)[0]) for i, s in enumerate(arrays["seeds"])]
         return {}, [("obs", np.array(out, dtype=np.float64))]
 
     def step(self, h, arrays):

@@ -112,7 +112,8 @@ impl fmt::Display for Stop {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Stop::Interrupted => write!(f, "interrupted"),
-            Stop::Budget(h) => write!(f, "time budget of {h} h reached"),
+            // `1e-300`, not the 300 digits of f64's Display.
+            Stop::Budget(h) => write!(f, "time budget of {} h reached", crate::error::short_number(h.to_string())),
             Stop::Missing(n) => write!(f, "{n} unit(s) missing after evaluation"),
         }
     }

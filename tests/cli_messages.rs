@@ -159,3 +159,34 @@ fn validates_caps_are_documented_in_the_readme_and_enforced() {
         &[&format!("invalid validate.datasets = {datasets}: must be in 1..={VALIDATE_DATASETS}")],
     );
 }
+
+#[test]
+fn a_tiny_time_budget_is_printed_short() {
+    let d = empty_dir("msg", "max-hours");
+    let o = bin()
+        .current_dir(&d)
+        .args(["search", "cartpole", "--quick", "--population", "2", "--generations", "1", "--datasets", "1"])
+        .args(["--episodes", "20", "--iterations", "1", "--out", "run", "--quiet", "--max-hours", "1e-300"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "a budget's stop exits 0: {err}");
+    assert!(err.contains("time budget of 1e-300 h reached"), "{err}");
+    assert!(!err.contains("0.0000"), "{err}");
+}
+
+#[test]
+fn a_gymnasium_action_is_named_as_written_not_as_rust_debugs_it() {
+    let d = empty_dir("msg", "gym-action");
+    // A run's spec.json records the env's spaces (`env.probed`), so no Python is needed to check it.
+    let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole-v1/spec.json");
+    let mut spec: serde_json::Value = serde_json::from_str(&read(&committed)).unwrap();
+    spec["env"]["actions"] = serde_json::json!([0, 5]);
+    std::fs::write(d.join("spec.json"), spec.to_string()).unwrap();
+    let err = fails(&d, &["search", "spec.json", "--dry-run"], 2, &["spec.json", "env.actions[1] = 5:", "0..2"]);
+    assert!(!err.contains("Scalar") && !err.contains("Some("), "{err}");
+    spec["env"]["actions"] = serde_json::json!([0, [1, 2]]);
+    std::fs::write(d.join("spec.json"), spec.to_string()).unwrap();
+    let err = fails(&d, &["search", "spec.json", "--dry-run"], 2, &["env.actions[1] = [1, 2]:"]);
+    assert!(!err.contains("Vector"), "{err}");
+}

@@ -45,13 +45,22 @@ fn setup_problems_are_refused_before_anything_runs() {
         ),
         (json!({"id": "Pendulum-v1", "actions": [-2.0, 5.0]}), vec!["env.actions[1]", "bounds [-2, 2]"]),
         (json!({"id": "CartPole-v1", "horizon": 800}), vec!["env.horizon = 800", "max_episode_steps", "500"]),
-        (json!({"id": "CartPole-v1", "actions": [0, 3]}), vec!["env.actions[1]", "0..2"]),
+        (json!({"id": "CartPole-v1", "actions": [0, 3]}), vec!["env.actions[1] = 3:", "0..2"]),
+        // A program that starts but is no Python running the worker.
+        (json!({"id": "CartPole-v1", "python": "/bin/false"}), vec!["env.python", "/bin/false", "CartPole-v1"]),
+        // Reset options the env refuses are refused with the spec, naming their field.
+        (json!({"id": "CartPole-v1", "reset_options": {"low": "a"}}), vec!["env.reset_options", "reset"]),
+        (
+            json!({"id": "CartPole-v1", "eval": {"reset_options": {"low": "a"}}}),
+            vec!["env.eval.reset_options", "reset"],
+        ),
     ];
     for (i, (env, words)) in cases.into_iter().enumerate() {
         let s = spec(&d, &format!("case{i}"), env);
         let (code, err) = dataset(&py, &s, &out);
         assert_eq!(code, Some(2), "bad input: {err}");
         one_line(&err);
+        assert!(!err.contains("Scalar(") && !err.contains("Some("), "Rust's debug forms: {err}");
         for w in words {
             assert!(err.contains(w), "{w:?} not in: {err}");
         }

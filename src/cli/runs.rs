@@ -165,12 +165,12 @@ pub(super) fn run(a: RunArgs) -> Result<Outcome> {
     } else {
         let l = &cfg.learner;
         println!(
-            "{} · {} · {} (complexity {}) · {:?} actions · K={} · {} datasets × {} episodes · seed {}",
+            "{} · {} · {} (complexity {}) · {} actions · K={} · {} datasets × {} episodes · seed {}",
             cfg.env.env().name(),
             cfg.algorithm.name(),
             l.short(),
             l.complexity().map_or("unbounded".into(), |c| c.to_string()),
-            cfg.actions,
+            serde_json::to_value(cfg.actions)?.as_str().unwrap_or("?"),
             cfg.iterations,
             cfg.datasets,
             cfg.episodes,

@@ -112,10 +112,12 @@ pub fn collect(cfg: &GymConfig, first: usize, episodes: &[(u64, Vec<f64>)]) -> R
         }
     }
     let what = format!("dataset episodes {first}..{}", first + e);
-    let req =
-        Frame::request("collect", serde_json::json!({"horizon": h, "options": options(cfg.reset_options.as_ref())}))
-            .with("seeds", &[e], Data::U8(episodes.iter().map(|(s, _)| *s).collect()))
-            .with("actions", &[e, h, a], Data::F8(actions));
+    let req = Frame::request(
+        "collect",
+        serde_json::json!({"horizon": h, "options": options(cfg.reset_options.as_ref()), "field": "env.reset_options"}),
+    )
+    .with("seeds", &[e], Data::U8(episodes.iter().map(|(s, _)| *s).collect()))
+    .with("actions", &[e, h, a], Data::F8(actions));
     let mut s = Session::checkout(cfg, false)?;
     let reply = s.ask(&what, &req)?;
     let steps: Vec<usize> = match reply.array("steps").map(|x| &x.data) {
@@ -169,7 +171,13 @@ impl<'a> LockStep<'a> {
         what: &str,
     ) -> Result<LockStep<'a>> {
         let mut session = Session::checkout(cfg, render)?;
-        let req = Frame::request("reset", serde_json::json!({"options": options(options_)})).with(
+        // The spec field the options come from, for a message if the env refuses them.
+        let field = if options_.is_some() && options_ == cfg.eval.reset_options.as_ref() {
+            "env.eval.reset_options"
+        } else {
+            "env.reset_options"
+        };
+        let req = Frame::request("reset", serde_json::json!({"options": options(options_), "field": field})).with(
             "seeds",
             &[seeds.len()],
             Data::U8(seeds.to_vec()),

@@ -101,6 +101,24 @@ pub enum ActionValue {
     Vector(Vec<f64>),
 }
 
+impl std::fmt::Display for ActionValue {
+    /// As written in the spec: `2`, `[0.5, -1]`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ActionValue::Scalar(x) => write!(f, "{x}"),
+            ActionValue::Vector(v) => {
+                let items: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+                write!(f, "[{}]", items.join(", "))
+            }
+        }
+    }
+}
+
+/// A time limit for people: its steps, or `none`.
+fn limit(steps: Option<usize>) -> String {
+    steps.map_or("none".into(), |n| n.to_string())
+}
+
 /// `env.dataset_policy`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -338,7 +356,7 @@ impl GymConfig {
                     ActionValue::Scalar(x) => x.is_finite(),
                     ActionValue::Vector(v) => !v.is_empty() && v.iter().all(|x| x.is_finite()),
                 };
-                ensure(ok, &format!("actions[{i}]"), format!("{a:?}"), "must be finite (a vector must not be empty)")?;
+                ensure(ok, &format!("actions[{i}]"), a.to_string(), "must be finite (a vector must not be empty)")?;
             }
         }
         Ok(())
@@ -401,7 +419,7 @@ impl GymConfig {
                     ensure(
                         ok,
                         &format!("actions[{i}]"),
-                        format!("{a:?}"),
+                        a.to_string(),
                         &format!(
                             "must be an action id of {id}'s {}: an integer in {start}..{}",
                             p.action.describe(),
@@ -430,7 +448,7 @@ impl GymConfig {
                     ensure(
                         v.len() == dim,
                         &format!("actions[{i}]"),
-                        format!("{a:?}"),
+                        a.to_string(),
                         &format!(
                             "must have {dim} value(s), as {id}'s {} (a number for a one-value Box)",
                             p.action.describe()
@@ -441,7 +459,7 @@ impl GymConfig {
                         ensure(
                             (lo..=hi).contains(x),
                             &format!("actions[{i}]"),
-                            format!("{a:?}"),
+                            a.to_string(),
                             &format!("must lie in {id}'s action bounds [{lo}, {hi}] (value {j})"),
                         )?;
                     }
@@ -488,15 +506,15 @@ impl GymConfig {
     pub(crate) fn check_same(&self, got: &Probed) -> Result<()> {
         match &self.probed {
             Some(p) if p != got => Err(Error::Failed(format!(
-                "gymnasium env {}: the worker reports observation {} and action {} (time limit {:?}), but env.probed \
-                 recorded observation {} and action {} (time limit {:?}): was gymnasium or the env changed since?",
+                "gymnasium env {}: the worker reports observation {} and action {} (time limit {}), but env.probed \
+                 recorded observation {} and action {} (time limit {}): was gymnasium or the env changed since?",
                 self.id,
                 got.observation.describe(),
                 got.action.describe(),
-                got.max_episode_steps,
+                limit(got.max_episode_steps),
                 p.observation.describe(),
                 p.action.describe(),
-                p.max_episode_steps
+                limit(p.max_episode_steps)
             ))),
             _ => Ok(()),
         }

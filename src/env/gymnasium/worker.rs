@@ -176,7 +176,18 @@ fn start(cfg: &GymConfig, render: bool) -> Result<Proc> {
         rgb_array: false,
     };
     let mut p = Proc { child, to, from, tail, python: python.clone(), probed: placeholder };
-    let hello = receive(&mut p, cfg, "its start")?;
+    // A program that starts but is no Python running the worker (`/bin/false`) is env.python's
+    // fault, as one that cannot be started is.
+    let hello = receive(&mut p, cfg, "its start").map_err(|e| {
+        Error::invalid(
+            "env.python",
+            &python,
+            format!(
+                "did not run the gymnasium worker for env {id} ({}); it must be Python 3 with gymnasium: set env.python or BFQI_PYTHON",
+                e.to_string().strip_prefix(&format!("gymnasium env {id}: ")).unwrap_or(&e.to_string())
+            ),
+        )
+    })?;
     if hello.header.get("ok") != Some(&Value::Bool(true)) {
         let err = text(&hello, "error");
         return Err(if text(&hello, "kind") == "import" {
@@ -191,7 +202,8 @@ fn start(cfg: &GymConfig, render: bool) -> Result<Proc> {
     }
     let protocol = hello.header.get("protocol").and_then(Value::as_u64);
     if protocol != Some(PROTOCOL) {
-        return Err(failed(&p, cfg, &format!("it speaks protocol {protocol:?}, this build {PROTOCOL}")));
+        let theirs = protocol.map_or("none".to_string(), |v| v.to_string());
+        return Err(failed(&p, cfg, &format!("it speaks protocol {theirs}, this build {PROTOCOL}")));
     }
     let open = Frame::request(
         "open",
@@ -224,9 +236,30 @@ fn probed_of(reply: &Frame) -> Option<Probed> {
 }
 
 /// Asks a worker what the env is (the first time a spec naming it is read).
+/// Its reset options are tried once each, so options the env refuses are refused with the spec,
+/// naming their field, rather than when the run first resets.
 pub(super) fn probe(cfg: &GymConfig) -> Result<Probed> {
-    let s = Session::checkout(cfg, false)?;
-    Ok(s.probed().clone())
+    let mut s = Session::checkout(cfg, false)?;
+    let probed = s.probed().clone();
+    for (field, options) in [("reset_options", &cfg.reset_options), ("eval.reset_options", &cfg.eval.reset_options)] {
+        let Some(o) = options else { continue };
+        let req = Frame::request("reset", serde_json::json!({"options": o, "field": format!("env.{field}")})).with(
+            "seeds",
+            &[1],
+            super::wire::Data::U8(vec![0]),
+        );
+        s.ask("a trial reset", &req).map_err(|e| {
+            let text = e.to_string();
+            let why = text.strip_prefix(&format!("gymnasium env {}: ", cfg.id)).unwrap_or(&text);
+            let why = why.strip_suffix(&format!(": check env.{field} in the spec")).unwrap_or(why);
+            Error::invalid(
+                format!("env.{field}"),
+                Value::Object(o.clone()),
+                format!("gymnasium env {}'s reset refuses it: {why}", cfg.id),
+            )
+        })?;
+    }
+    Ok(probed)
 }
 
 fn text(f: &Frame, k: &str) -> String {
@@ -244,6 +277,15 @@ fn exchange(p: &mut Proc, cfg: &GymConfig, what: &str, request: &Frame) -> Resul
         return Ok(reply);
     }
     let _ = p.child.kill();
+    if text(&reply, "kind") == "reset" {
+        // The env refused the spec's reset options: name the field that holds them.
+        let field = request.header.get("field").and_then(Value::as_str).unwrap_or("env.reset_options");
+        return Err(Error::Failed(format!(
+            "gymnasium env {}: {} (during {what}): check {field} in the spec",
+            cfg.id,
+            text(&reply, "error")
+        )));
+    }
     Err(Error::Failed(format!("gymnasium env {}: {} (during {what})", cfg.id, text(&reply, "error"))))
 }
 
