@@ -36,7 +36,7 @@ pub fn kind(dir: &Path) -> Result<RunKind> {
 
 /// The run directories under `root` (searches with a `spec.json`, started or not, comparisons with
 /// a `compare.json`), sorted; a run's own folders are not searched further, nor hidden ones (a run
-/// under construction is `.<name>.tmp<pid>` until it is whole).
+/// under construction is `.<name>.tmp<pid>-<host>` until it is whole).
 pub fn find(root: &Path) -> Vec<PathBuf> {
     let mut dirs = Vec::new();
     let mut stack = vec![root.to_path_buf()];

@@ -140,7 +140,7 @@ impl<'de> serde::de::Visitor<'de> for StrictVisitor {
 }
 
 /// Creates a new run directory whole: `fill` writes its files into a temporary sibling
-/// (`.<name>.tmp<pid>`), which is then renamed into place, so a kill at any moment leaves either
+/// (`.<name>.tmp<pid>-<host>`), which is then renamed into place, so a kill at any moment leaves either
 /// a run with every file `fill` writes (its `run.json` included) or no run at all. The directory is
 /// `out` (refused if it already holds a run, i.e. has `marker`, naming the `--resume` to use
 /// instead), or a fresh `<parent>/<prefix><timestamp>`. An `out` that already holds other files
@@ -208,7 +208,8 @@ pub fn create_run_dir(
 /// first, and this one is removed if `fill` fails.
 fn build_dir(parent: &Path, name: &str, fill: impl FnOnce(&Path) -> Result<()>) -> Result<PathBuf> {
     remove_stale_builds(parent);
-    let tmp = parent.join(format!(".{name}.tmp{}", std::process::id()));
+    // The host too: on a shared file system a process of another host is not ours to judge.
+    let tmp = parent.join(format!(".{name}.tmp{}-{}", std::process::id(), host()));
     let _ = fs::remove_dir_all(&tmp);
     fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
     if let Err(e) = fill(&tmp) {
@@ -218,16 +219,27 @@ fn build_dir(parent: &Path, name: &str, fill: impl FnOnce(&Path) -> Result<()>) 
     Ok(tmp)
 }
 
-/// Removes the run directories under construction (`.<name>.tmp<pid>`) in `parent` whose process
-/// no longer exists on this host: what a kill during [`create_run_dir`] leaves. Best effort.
+/// The process and host of a run directory under construction, from its name
+/// (`.<name>.tmp<pid>-<host>`; the host may hold dots, and is empty if left out).
+fn build_owner(name: &str) -> Option<(u32, &str)> {
+    let rest = name.strip_prefix('.')?;
+    rest.match_indices(".tmp").find_map(|(i, _)| {
+        let tail = &rest[i + 4..];
+        let (pid, host) = tail.split_once('-').unwrap_or((tail, ""));
+        pid.parse().ok().map(|p| (p, host))
+    })
+}
+
+/// Removes the run directories under construction in `parent` whose process no longer exists on
+/// this host: what a kill during [`create_run_dir`] leaves. Another host's are left alone. Best
+/// effort.
 fn remove_stale_builds(parent: &Path) {
     let Ok(entries) = fs::read_dir(parent) else { return };
+    let here = host();
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        let Some(pid) = name.strip_prefix('.').and_then(|n| n.rsplit_once(".tmp")).map(|(_, p)| p) else {
-            continue;
-        };
-        let dead = pid.parse::<u32>().is_ok_and(|p| !Path::new(&format!("/proc/{p}")).exists());
+        let Some((pid, owner)) = build_owner(&name) else { continue };
+        let dead = (owner.is_empty() || owner == here) && !Path::new(&format!("/proc/{pid}")).exists();
         if dead && e.path().is_dir() {
             let _ = fs::remove_dir_all(e.path());
         }
@@ -409,6 +421,45 @@ mod tests {
         fs::write(dir.join("lock"), format!("4294967295 {}", host())).unwrap();
         drop(RunLock::acquire(&dir).unwrap());
         fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_run_directory_appears_whole_or_not_at_all() {
+        let root = std::env::temp_dir().join(format!("bfqi-create-run-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&root);
+        let whole = |d: &Path| write_json(&d.join("run.json"), &1).and_then(|_| write_json(&d.join("m.json"), &2));
+        // A fill that fails half-way leaves nothing, not even its sibling under construction.
+        let failed = create_run_dir(None, "m.json", "a run", &root, "r-", |d| {
+            write_json(&d.join("run.json"), &1)?;
+            Err(Error::Failed("killed".into()))
+        });
+        assert!(failed.is_err());
+        assert_eq!(fs::read_dir(&root).unwrap().count(), 0);
+        // What a killed process left is removed; another host's build is not ours to remove.
+        fs::create_dir_all(root.join(".r-x.tmp4294967295")).unwrap();
+        fs::create_dir_all(root.join(".r-y.tmp4294967295-another.host")).unwrap();
+        let d = create_run_dir(None, "m.json", "a run", &root, "r-", whole).unwrap();
+        assert!(d.join("run.json").is_file() && d.join("m.json").is_file());
+        let mut names: Vec<String> =
+            fs::read_dir(&root).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [".r-y.tmp4294967295-another.host".to_string(), d.file_name().unwrap().to_string_lossy().into()]
+        );
+        // A second run of the same second gets its own name; `--out` of a run is refused.
+        let d2 = create_run_dir(None, "m.json", "a run", &root, "r-", whole).unwrap();
+        assert_ne!(d, d2);
+        let e = create_run_dir(Some(&d), "m.json", "a run", &root, "r-", whole).unwrap_err().to_string();
+        assert!(e.contains("already holds a run: use --resume"), "{e}");
+        // An empty --out folder is replaced by the whole run.
+        let out = root.join("out");
+        fs::create_dir(&out).unwrap();
+        assert_eq!(create_run_dir(Some(&out), "m.json", "a run", &root, "r-", whole).unwrap(), out);
+        assert!(out.join("run.json").is_file());
+        assert_eq!(build_owner(".search-1.tmp12-node.a.b"), Some((12, "node.a.b")));
+        assert_eq!(build_owner(".search-1.tmp12"), Some((12, "")));
+        fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
