@@ -8,29 +8,26 @@ use super::table::{Cell, Table, num};
 use crate::ga::records::Phase;
 use crate::ga::units::describe;
 use crate::progress::human;
-use crate::store::{RunLock, read_json};
 use serde_json::{Value, json};
-use std::path::Path;
 
-/// The runs table: every search, comparison, batch and rollout under the roots.
-pub fn table(roots: &Roots) -> Table {
+/// The runs table: every search, comparison, batch and rollout under the roots; and what could
+/// not be read of them.
+pub fn table(roots: &Roots) -> (Table, Vec<String>) {
     let mut t = Table::new(
         "runs",
         "Runs",
         &["run", "kind", "env", "state", "generation", "best fitness", "settings", "progress", "ETA"],
     );
+    let mut notes = Vec::new();
     for run in roots.runs() {
         t.push(row(&run, roots));
+        notes.extend(run.notes().into_iter().map(|n| format!("{}: {n}", run.label(roots))));
     }
-    t
-}
-
-fn info(dir: &Path) -> Value {
-    read_json(&dir.join("run.json")).unwrap_or_default()
+    (t, notes)
 }
 
 fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
-    let info = info(&run.dir);
+    let info: Value = run.json("run.json").unwrap_or_default();
     let env = info["env"].as_str().map(String::from);
     let cells = |state: String, generation: String, best: String, settings: String, progress: String, eta: String| {
         vec![
@@ -47,7 +44,7 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
     };
     let dash = || "—".to_string();
     match run.kind {
-        Kind::Search => match state(&run.dir) {
+        Kind::Search => match state(run) {
             Some((st, phase)) => cells(
                 phase.name().into(),
                 format!("{}/{}", st.generation, st.generations),
@@ -63,9 +60,9 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
         },
         Kind::Compare => {
             let done = std::fs::read_dir(run.dir.join("units")).map_or(0, |d| d.count());
-            let state = if RunLock::is_held(&run.dir) {
+            let state = if run.is_held() {
                 "running"
-            } else if run.dir.join("report.md").is_file() {
+            } else if crate::store::something_at(&run.dir.join("report.md")) {
                 "finished"
             } else {
                 "interrupted"
@@ -74,10 +71,10 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
             cells(state.into(), dash(), dash(), settings, format!("{done} units"), dash())
         }
         Kind::Batch => {
-            let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+            let jobs: Vec<Value> = run.json("batch.json").unwrap_or_default();
             let done = jobs.iter().filter(|j| j["state"] == "finished").count();
             cells(
-                if RunLock::is_held(&run.dir) { "running" } else { "stopped" }.into(),
+                if run.is_held() { "running" } else { "stopped" }.into(),
                 dash(),
                 dash(),
                 format!("{} jobs", jobs.len()),
@@ -86,7 +83,7 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
             )
         }
         Kind::Rollout => {
-            let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+            let r: Value = run.json("rollout.json").unwrap_or_default();
             let env = r["info"]["env"]["name"].as_str().unwrap_or("—").to_string();
             let mut c = cells("finished".into(), dash(), dash(), plain(&r["info"]["source"]), dash(), dash());
             c[2] = Cell::text(env);
@@ -115,7 +112,7 @@ pub fn images(run: &Run, ext: &str) -> Vec<(String, String)> {
 /// A comparison's page: its summary (curves with 95 % bands drawn from it) and the claims its
 /// report states, with the thesis's statement beside each verdict.
 pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
-    let text = std::fs::read_to_string(run.dir.join("summary.csv")).unwrap_or_default();
+    let text = run.text("summary.csv").unwrap_or_default();
     let mut lines = text.lines();
     let cols: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     let mut t = Table::new("summary", "Summary (mean, std and 95 % interval per point)", &cols);
@@ -135,7 +132,7 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
         t.push(f.iter().map(|s| Cell::text(*s)).collect());
     }
     let mut claims = Table::new("claims", "Thesis claims", &["the thesis says", "verdict here", "rule", "this run"]);
-    let report = std::fs::read_to_string(run.dir.join("report.md")).unwrap_or_default();
+    let report = run.text("report.md").unwrap_or_default();
     let mut lines = report.lines().skip_while(|l| !l.starts_with("## Thesis claims")).peekable();
     while let Some(l) = lines.next() {
         if let Some(rest) = l.strip_prefix("- **") {
@@ -151,7 +148,7 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
 
 /// A batch's page: its jobs, linked to their run directories when those are served.
 pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
-    let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+    let jobs: Vec<Value> = run.json("batch.json").unwrap_or_default();
     let mut t = Table::new("jobs", "Jobs", &["name", "kind", "state", "directory", "seconds", "result", "message"]);
     for j in &jobs {
         let dir = plain(&j["dir"]);
@@ -178,7 +175,7 @@ pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
 
 /// A rollout's page: its summary fields.
 pub fn rollout(run: &Run) -> Vec<Table> {
-    let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+    let r: Value = run.json("rollout.json").unwrap_or_default();
     let mut t = Table::new("rollout", "Rollout", &["field", "value"]);
     for (k, v) in r.as_object().into_iter().flatten() {
         if k != "info" {

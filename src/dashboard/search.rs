@@ -6,25 +6,44 @@ use super::html::encode;
 use super::table::{Cell, Table, num};
 use crate::ga::records::{GenerationRecord, Phase, RunState};
 use crate::ga::units::{UnitResult, activation_name, describe, parse_setting_id, unit_id};
-use crate::ga::validate::{self, Validation};
+use crate::ga::validate::Validation;
 use crate::progress::human;
-use crate::store::{RunLock, read_json};
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
-use std::path::Path;
 
-/// The generations recorded so far. A line that does not parse (the last one while it is being
-/// appended, or a damaged one) is skipped: the page shows what is whole.
-pub fn generations(dir: &Path) -> Vec<GenerationRecord> {
-    let text = std::fs::read_to_string(dir.join("generations.jsonl")).unwrap_or_default();
-    text.lines().filter_map(|l| serde_json::from_str(l).ok()).collect()
+/// The generations recorded so far. A line without its newline is one being appended: skipped
+/// while the search runs. Any other line that does not parse (invalid UTF-8, a damaged record) is
+/// skipped and noted on the page, so a history with gaps never looks whole.
+pub fn generations(run: &Run) -> Vec<GenerationRecord> {
+    let Some(bytes) = run.read("generations.jsonl") else { return Vec::new() };
+    let mut lines: Vec<&[u8]> = bytes.split(|&b| b == b'\n').collect();
+    let partial = lines.pop().filter(|l| !l.is_empty());
+    if partial.is_some() && !run.is_held() {
+        run.note(format!("generations.jsonl: line {} skipped: cut short (no newline)", lines.len() + 1));
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let why = match std::str::from_utf8(line) {
+            Err(e) => format!("not UTF-8 (byte {})", e.valid_up_to()),
+            Ok(l) if l.trim().is_empty() => continue,
+            Ok(l) => match serde_json::from_str::<GenerationRecord>(l) {
+                Ok(r) => {
+                    out.push(r);
+                    continue;
+                }
+                Err(e) => e.to_string(),
+            },
+        };
+        run.note(format!("generations.jsonl: line {} skipped: {why}", i + 1));
+    }
+    out
 }
 
 /// The state, with a run nobody holds the lock of shown as interrupted.
-pub fn state(dir: &Path) -> Option<(RunState, Phase)> {
-    let st: RunState = read_json(&dir.join("state.json")).ok()?;
+pub fn state(run: &Run) -> Option<(RunState, Phase)> {
+    let st: RunState = run.json("state.json")?;
     let phase = match st.state {
-        Phase::Running if !RunLock::is_held(dir) => Phase::Interrupted,
+        Phase::Running if !run.is_held() => Phase::Interrupted,
         s => s,
     };
     Some((st, phase))
@@ -74,10 +93,9 @@ pub fn setting_url(run: &Run, id: &str) -> String {
 
 /// The search page: its tables, and the chart data the script draws.
 pub fn page(run: &Run) -> (Vec<Table>, Value) {
-    let dir = &run.dir;
-    let gens = generations(dir);
-    let env = read_json::<Value>(&dir.join("run.json")).ok().and_then(|v| v["env"].as_str().map(String::from));
-    let validation = validate::load(dir);
+    let gens = generations(run);
+    let env = run.json::<Value>("run.json").and_then(|v| v["env"].as_str().map(String::from));
+    let validation: Option<Validation> = run.json("validation.json");
     let reference = env.as_deref().and_then(|e| validation.as_ref()?.thesis_fitness(e));
     let pts = points(&gens);
 
@@ -146,7 +164,7 @@ pub fn page(run: &Run) -> (Vec<Table>, Value) {
 
 fn summary(run: &Run, gens: &[GenerationRecord]) -> Table {
     let mut t = Table::new("summary", "State", &["state", "generation", "best fitness", "best setting", "ran", "ETA"]);
-    if let Some((st, phase)) = state(&run.dir) {
+    if let Some((st, phase)) = state(run) {
         t.push(vec![
             Cell::text(phase.name()),
             Cell::text(format!("{}/{}", st.generation, st.generations)),
@@ -166,7 +184,7 @@ fn summary(run: &Run, gens: &[GenerationRecord]) -> Table {
 
 fn hall_of_fame(run: &Run) -> Table {
     let mut t = Table::new("hall_of_fame", "Hall of fame", &["rank", "setting", "fitness", "generation"]);
-    let hof: Vec<Value> = read_json(&run.dir.join("hall_of_fame.json")).unwrap_or_default();
+    let hof: Vec<Value> = run.json("hall_of_fame.json").unwrap_or_default();
     for (i, e) in hof.iter().enumerate() {
         let id = serde_json::from_value(e["decoded"].clone()).ok().map(|d| crate::ga::units::setting_id(&d));
         let id = id.unwrap_or_else(|| "?".into());
@@ -200,7 +218,7 @@ fn validation_tables(run: &Run, v: &Validation) -> Vec<Table> {
     }
     let mut out = vec![t];
     // The race rounds, once validation.json records them: each round's fields as columns.
-    let raw: Value = read_json(&run.dir.join("validation.json")).unwrap_or_default();
+    let raw: Value = run.json("validation.json").unwrap_or_default();
     if let Some(rounds) = raw["rounds"].as_array().filter(|r| !r.is_empty()) {
         let cols: Vec<String> = rounds[0].as_object().map(|o| o.keys().cloned().collect()).unwrap_or_default();
         let mut r = Table::new("race_rounds", "Validation race rounds", &[]);
@@ -242,11 +260,11 @@ pub fn setting_page(run: &Run, id: &str) -> Option<Vec<Table>> {
         &["dataset", "iteration", "network", "epochs", "stop", "train loss", "val loss"],
     );
     for d in 0.. {
-        let path = run.dir.join("units").join(format!("{}.json", unit_id(&decoded, d)));
-        if !path.is_file() {
+        let name = format!("units/{}.json", unit_id(&decoded, d));
+        if !crate::store::something_at(&run.dir.join(&name)) {
             break;
         }
-        let Ok(u) = read_json::<UnitResult>(&path) else { continue };
+        let Some(u) = run.json::<UnitResult>(&name) else { continue };
         scores.push(vec![
             Cell::text(d.to_string()),
             Cell::text(num(u.score)),
@@ -283,23 +301,27 @@ pub fn setting_page(run: &Run, id: &str) -> Option<Vec<Table>> {
             ]);
         }
     }
-    let gens = generations(&run.dir);
+    let gens = generations(run);
     let mut births = Table::new(
         "births",
         "Births",
         &["generation", "index", "origin", "parents", "crossed genes", "mutated", "genes", "fitness"],
     );
-    for (gi, g) in gens.iter().enumerate() {
+    for g in &gens {
         for ind in g.individuals.iter().filter(|i| i.setting == id) {
-            let prev = gi.checked_sub(1).and_then(|p| gens.get(p));
-            let parents: Vec<Cell> = ind
+            // Parents are indices into the generation before, found by its number: a skipped
+            // line must not make the next generation's parents read from the wrong one.
+            let prev = g.generation.checked_sub(1).and_then(|p| gens.iter().find(|r| r.generation == p));
+            let parents = ind
                 .birth
                 .iter()
                 .flat_map(|b| b.parents)
-                .map(|p| prev.and_then(|g| g.individuals.get(p)).map_or(format!("#{p}"), |i| i.setting.clone()))
-                .map(Cell::text)
-                .collect();
-            let parents = parents.iter().map(|c| c.text.clone()).collect::<Vec<_>>().join(" × ");
+                .map(|p| match prev.and_then(|r| r.individuals.get(p)) {
+                    Some(i) => i.setting.clone(),
+                    None => format!("#{p} of generation {} (not read)", g.generation.saturating_sub(1)),
+                })
+                .collect::<Vec<_>>()
+                .join(" × ");
             births.push(vec![
                 Cell::text(g.generation.to_string()),
                 Cell::text(ind.index.to_string()),
