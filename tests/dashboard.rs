@@ -246,7 +246,7 @@ fn every_table_downloads_as_csv() {
     let home = s.json("/?json=1");
     let csv = s.ok("/?csv=runs");
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], "run,kind,env,state,generation,best fitness,settings,progress,ETA");
+    assert_eq!(lines[0], "run,kind,env,state,generation,best fitness,settings,progress,ETA,started,updated");
     assert_eq!(lines.len(), 1 + rows(table(&home, "runs")));
     assert!(lines[1].starts_with("\"") && lines[1].contains("a,b\",search,cartpole,finished,2/2,"), "{csv}");
 
@@ -706,4 +706,60 @@ fn damaged_generation_lines_are_shown_and_births_name_the_right_parents() {
     // A record damaged as JSON: skipped and said so too.
     std::fs::write(dir.join("generations.jsonl"), text.replacen("\"generation\"", "\"generation\":[", 1)).unwrap();
     assert!(s.json("/run/0/run?json=1")["notes"].to_string().contains("line 1 skipped"));
+}
+
+// ---- What users of optuna-dashboard expect, on the server's side. ----
+
+#[test]
+fn csv_exports_the_stored_numbers_and_pages_carry_the_new_tables() {
+    let root = empty_dir("dashboard", "ux");
+    let dir = root.join("run");
+    tiny_search(&dir);
+    // A finished batch, and a rollout with its plots.
+    std::fs::create_dir_all(root.join("batch")).unwrap();
+    std::fs::write(root.join("batch/batch.json"), r#"[{"name":"a","kind":"search","state":"finished","dir":"run"}]"#)
+        .unwrap();
+    copy_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/rollouts/bicycle-bfqi-et"), &root.join("roll"));
+    let s = serve(&[root.to_path_buf()]);
+
+    // The runs list: whole (no scroll box), with start and update times; the batch finished.
+    let html = s.ok("/");
+    assert!(html.contains("<div class=\"whole\"><table data-table=\"runs\">"), "{}", short(&html));
+    let home = s.json("/?json=1");
+    let runs = table(&home, "runs")["rows"].as_array().unwrap().clone();
+    let row = |name: &str| runs.iter().find(|r| r[0]["text"].as_str().unwrap().ends_with(name)).unwrap().clone();
+    let created = common::json(dir.join("run.json"))["created"].as_str().unwrap().to_string();
+    assert_eq!(row("/run")[9]["text"], created.as_str());
+    assert!(row("/run")[10]["text"].as_str().unwrap().ends_with('Z'));
+    assert_eq!(row("/batch")[3]["text"], "finished");
+
+    // CSV: the stored numbers, not the page's four decimals.
+    let first: Value = serde_json::from_str(read(dir.join("generations.jsonl")).lines().next().unwrap()).unwrap();
+    let csv = s.ok("/run/0/run?csv=generations");
+    let best: f64 = csv.lines().nth(1).unwrap().split(',').nth(1).unwrap().parse().unwrap();
+    assert_eq!(best, first["stats"]["max"].as_f64().unwrap(), "{csv}");
+    assert!(csv.lines().nth(1).unwrap().split(',').nth(1).unwrap().len() > 6, "{csv}");
+
+    // Gene importance, named by its method, as a table and as chart data.
+    let page = s.json("/run/0/run?json=1");
+    let imp = table(&page, "importance");
+    assert!(imp["title"].as_str().unwrap().contains("η²"));
+    assert_eq!(rows(imp), 3);
+    assert_eq!(page["charts"]["importance"].as_array().unwrap().len(), 3);
+    let html = s.ok("/run/0/run");
+    assert!(html.contains("id=\"parallel\"") && html.contains("id=\"importance\""));
+
+    // A setting's losses, as chart data: one entry per dataset, iteration and network.
+    let id = settings(&dir).into_iter().next().unwrap();
+    let setting = s.json(&format!("/run/0/run?setting={id}&json=1"));
+    assert_eq!(setting["charts"]["losses"].as_array().unwrap().len(), rows(table(&setting, "networks")));
+    assert!(s.ok(&format!("/run/0/run?setting={id}")).contains("id=\"losses\""));
+
+    // The rollout: its fields, its episodes, its state and action plot and its GIF; no cut JSON.
+    let r = s.json("/run/0/roll?json=1");
+    assert_eq!(rows(table(&r, "episodes")), 1);
+    assert!(table(&r, "rollout").to_string().contains("bicycle"));
+    assert!(!r.to_string().contains('…'));
+    let html = s.ok("/run/0/roll");
+    assert!(html.contains("src=\"/file/0/roll/episode-0.png\"") && html.contains("src=\"/file/0/roll/episode-0.gif\""));
 }

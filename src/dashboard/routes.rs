@@ -114,9 +114,11 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
     let mut body = String::new();
     let (tables, charts) = match (run.kind, setting) {
         (Kind::Search, Some(id)) => {
-            let tables = super::search::setting_page(&run, id).ok_or_else(|| Reply::error(404, "no such setting"))?;
+            let (tables, charts) =
+                super::search::setting_page(&run, id).ok_or_else(|| Reply::error(404, "no such setting"))?;
+            body.push_str("<section class=\"charts\"><div class=\"chart wide\" id=\"losses\"></div></section>");
             let notes = run.notes();
-            return Ok(Page { title: format!("Setting {id}"), crumbs, body, tables, charts: Value::Null, notes });
+            return Ok(Page { title: format!("Setting {id}"), crumbs, body, tables, charts, notes });
         }
         (_, Some(_)) => return Err(Reply::error(404, "only a search has settings")),
         (Kind::Search, None) => {
@@ -124,7 +126,9 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
                 "<section class=\"charts\"><div class=\"chart\" id=\"fitness\"></div>\
                  <div class=\"chart\" id=\"explorer\"></div></section>\
                  <section class=\"charts\"><div class=\"chart small\" id=\"gene-delta\"></div>\
-                 <div class=\"chart small\" id=\"gene-patience\"></div><div class=\"chart small\" id=\"gene-activation\"></div></section>",
+                 <div class=\"chart small\" id=\"gene-patience\"></div><div class=\"chart small\" id=\"gene-activation\"></div></section>\
+                 <section class=\"charts\"><div class=\"chart wide\" id=\"parallel\"></div>\
+                 <div class=\"chart small\" id=\"importance\"></div></section>",
             );
             super::search::page(&run)
         }
@@ -137,6 +141,7 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
         }
         (Kind::Batch, None) => (super::runs::batch(&run, roots), Value::Null),
         (Kind::Rollout, None) => {
+            body.push_str(&gallery("States and actions", &super::runs::images(&run, ".png")));
             body.push_str(&gallery("Rollouts", &super::runs::images(&run, ".gif")));
             (super::runs::rollout(&run), Value::Null)
         }
