@@ -356,7 +356,12 @@ impl RunLock {
 
     /// True when `dir` holds a lock of a live process on this host.
     pub fn is_held(dir: &Path) -> bool {
-        let Ok(held) = fs::read_to_string(dir.join("lock")) else { return false };
+        fs::read_to_string(dir.join("lock")).is_ok_and(|held| RunLock::held_by(&held))
+    }
+
+    /// Whether a lock file's text (`PID HOST`) names a live process on this host, or another host
+    /// (which cannot be checked from here, so counts as held).
+    pub fn held_by(held: &str) -> bool {
         let mut parts = held.split_whitespace();
         match (parts.next().and_then(|p| p.parse::<u32>().ok()), parts.next()) {
             (Some(p), Some(h)) if h == host() => Path::new(&format!("/proc/{p}")).exists(),

@@ -246,7 +246,7 @@ fn every_table_downloads_as_csv() {
     let home = s.json("/?json=1");
     let csv = s.ok("/?csv=runs");
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], "run,kind,env,state,generation,best fitness,settings,progress,ETA");
+    assert_eq!(lines[0], "run,kind,env,state,generation,best fitness,settings,progress,ETA,started,updated");
     assert_eq!(lines.len(), 1 + rows(table(&home, "runs")));
     assert!(lines[1].starts_with("\"") && lines[1].contains("a,b\",search,cartpole,finished,2/2,"), "{csv}");
 
@@ -386,4 +386,380 @@ fn the_command_prints_its_url_and_warns_before_leaving_loopback() {
     assert!(!o.status.success());
     let o = bin().args(["dashboard"]).arg(root.join("missing")).output().unwrap();
     assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("missing"));
+}
+
+// ---- Security and robustness: every bound a request meets, with real sockets on 127.0.0.1. ----
+
+/// `bfqi-ga dashboard` as a child process on a free port; killed when dropped.
+struct Child {
+    child: std::process::Child,
+    url: String,
+    addr: String,
+}
+
+impl Child {
+    fn start(roots: &[&Path], extra: &[&str]) -> Child {
+        let mut child = bin()
+            .arg("dashboard")
+            .args(roots)
+            .args(["--port", "0"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let url = line.trim().strip_prefix("bfqi-ga dashboard: ").unwrap_or_else(|| panic!("{line}")).to_string();
+        let addr = url.trim_start_matches("http://").trim_end_matches('/').to_string();
+        Child { child, url, addr }
+    }
+
+    /// A line of the server's `/proc/PID/status`, in KiB (`VmHWM`: its peak resident memory).
+    fn memory_kib(&self, field: &str) -> u64 {
+        let s = read(format!("/proc/{}/status", self.child.id()));
+        let line = s.lines().find(|l| l.starts_with(field)).unwrap_or_else(|| panic!("no {field}"));
+        line.split_whitespace().nth(1).unwrap().parse().unwrap()
+    }
+
+    fn alive(&mut self) -> bool {
+        self.child.try_wait().unwrap().is_none()
+    }
+}
+
+impl Drop for Child {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Sends `bytes` as they are and returns what comes back (empty when the connection is reset
+/// before an answer), waiting at most `secs`.
+fn raw(addr: &str, bytes: &[u8], secs: u64) -> String {
+    use std::io::Read;
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(secs))).unwrap();
+    let _ = s.write_all(bytes);
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn status_of(response: &str) -> Option<u16> {
+    response.split(' ').nth(1)?.parse().ok()
+}
+
+#[test]
+fn no_request_makes_the_server_allocate_more_than_a_small_bound() {
+    let root = empty_dir("dashboard", "memory");
+    copy_dir(&committed().join("bicycle-compare-mlp-iterations"), &root.join("cmp"));
+    let mut srv = Child::start(&[&root], &[]);
+    let host = format!("Host: {}\r\n", srv.addr);
+    for _ in 0..3 {
+        assert_eq!(http_get(&srv.url, "/run/0/cmp").status, 200);
+    }
+    let before = srv.memory_kib("VmHWM");
+
+    // The declared body of a GET: refused, not allocated (tiny_http 0.12 allocated it and aborted).
+    let r = raw(&srv.addr, format!("GET / HTTP/1.1\r\n{host}Content-Length: 99999999999\r\n\r\n").as_bytes(), 10);
+    assert_eq!(status_of(&r), Some(400), "{r}");
+    assert!(r.contains("no body"), "{r}");
+    let r =
+        raw(&srv.addr, format!("GET / HTTP/1.1\r\n{host}Transfer-Encoding: chunked\r\n\r\n5\r\nhello").as_bytes(), 10);
+    assert_eq!(status_of(&r), Some(400), "{r}");
+    let r = raw(&srv.addr, format!("POST / HTTP/1.1\r\n{host}Content-Length: 99999999999\r\n\r\n").as_bytes(), 10);
+    assert_eq!(status_of(&r), Some(405), "{r}");
+    // A 64 MB request line: answered 414 after 8 KiB (or reset while the client still sends).
+    let mut line = b"GET /".to_vec();
+    line.resize(64 << 20, b'a');
+    let r = raw(&srv.addr, &line, 20);
+    assert!(r.is_empty() || status_of(&r) == Some(414), "{}", &r[..r.len().min(300)]);
+    // 64 MB of headers, and many small ones.
+    let mut headers = format!("GET / HTTP/1.1\r\n{host}X-Big: ").into_bytes();
+    headers.resize(64 << 20, b'b');
+    let r = raw(&srv.addr, &headers, 20);
+    assert!(r.is_empty() || status_of(&r) == Some(431), "{}", &r[..r.len().min(300)]);
+    let many = format!("GET / HTTP/1.1\r\n{host}{}\r\n", "X-A: 1\r\n".repeat(200));
+    assert_eq!(status_of(&raw(&srv.addr, many.as_bytes(), 10)), Some(431));
+    // HEAD: the headers only.
+    let r = raw(&srv.addr, format!("HEAD /run/0/cmp HTTP/1.1\r\n{host}\r\n").as_bytes(), 10);
+    assert_eq!(status_of(&r), Some(200));
+    assert!(r.ends_with("\r\n\r\n"), "no body after HEAD's headers");
+
+    assert!(srv.alive(), "the server survived");
+    assert_eq!(http_get(&srv.url, "/run/0/cmp").status, 200);
+    let after = srv.memory_kib("VmHWM");
+    println!("dashboard peak memory (VmHWM): {before} KiB after 3 pages, {after} KiB after the attack requests");
+    assert!(after < before + 8 * 1024, "{before} → {after} KiB");
+}
+
+#[test]
+fn slow_and_idle_clients_cannot_tie_up_the_server() {
+    use std::io::Read;
+    use std::time::{Duration, Instant};
+    let root = empty_dir("dashboard", "slow");
+    copy_dir(&committed().join("bicycle-compare-mlp-iterations"), &root.join("cmp"));
+    let srv = Child::start(&[&root], &[]);
+    // More slow clients than the old server had workers (4), each sending a byte every 300 ms.
+    let mut slow: Vec<std::net::TcpStream> = (0..8).map(|_| std::net::TcpStream::connect(&srv.addr).unwrap()).collect();
+    let started = Instant::now();
+    let mut first: Option<Duration> = None;
+    // They keep sending for 9 s (the server's whole-head deadline is 10 s).
+    for step in 0..30 {
+        for s in &mut slow {
+            let _ = s.write_all(if step == 0 { b"G" } else { b"x" });
+        }
+        if first.is_none() {
+            let t = Instant::now();
+            assert_eq!(http_get(&srv.url, "/run/0/cmp").status, 200, "answered beside the slow clients");
+            first = Some(t.elapsed());
+        }
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    assert!(first.unwrap() < Duration::from_secs(2), "{first:?}");
+    // Each slow client had 10 s for its whole request head, however steadily it sent: it was
+    // answered 408 and closed.
+    for s in &mut slow {
+        s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+        let mut out = Vec::new();
+        let _ = s.read_to_end(&mut out);
+        let r = String::from_utf8_lossy(&out);
+        assert_eq!(status_of(&r), Some(408), "{r}");
+    }
+    assert!(started.elapsed() < Duration::from_secs(13), "{:?}", started.elapsed());
+    // Idle connections beyond the cap are answered 503 at once; once they close, service resumes.
+    let idle: Vec<std::net::TcpStream> = (0..40).map(|_| std::net::TcpStream::connect(&srv.addr).unwrap()).collect();
+    std::thread::sleep(Duration::from_millis(300));
+    let t = Instant::now();
+    let r = raw(&srv.addr, format!("GET / HTTP/1.1\r\nHost: {}\r\n\r\n", srv.addr).as_bytes(), 5);
+    assert_eq!(status_of(&r), Some(503), "{r}");
+    assert!(t.elapsed() < Duration::from_secs(2));
+    drop(idle);
+    let t = Instant::now();
+    loop {
+        let r = http_get(&srv.url, "/");
+        if r.status == 200 {
+            break;
+        }
+        assert!(t.elapsed() < Duration::from_secs(5), "still {}", r.status);
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn a_host_header_must_name_the_server() {
+    let root = empty_dir("dashboard", "host");
+    copy_dir(&committed().join("bicycle-compare-mlp-iterations"), &root.join("cmp"));
+    let srv = Child::start(&[&root], &[]);
+    let port = srv.addr.rsplit_once(':').unwrap().1;
+    let get = |host: Option<&str>| {
+        let h = host.map_or(String::new(), |h| format!("Host: {h}\r\n"));
+        status_of(&raw(&srv.addr, format!("GET /run/0/cmp?json=1 HTTP/1.1\r\n{h}\r\n").as_bytes(), 10))
+    };
+    for ok in [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("[::1]:{port}")] {
+        assert_eq!(get(Some(&ok)), Some(200), "{ok}");
+    }
+    // What a DNS-rebinding page sends: its own name, at our port.
+    for bad in [format!("attacker.example:{port}"), format!("127.0.0.1.nip.io:{port}"), "127.0.0.1:1".into()] {
+        let r = raw(&srv.addr, format!("GET /run/0/cmp?json=1 HTTP/1.1\r\nHost: {bad}\r\n\r\n").as_bytes(), 10);
+        assert_eq!(status_of(&r), Some(403), "{bad}: {r}");
+        assert!(!r.contains("Thesis"), "{bad}");
+    }
+    assert_eq!(get(None), Some(400), "HTTP/1.1 requires a Host");
+}
+
+#[test]
+fn the_host_flag_takes_loopback_in_every_spelling() {
+    let root = empty_dir("dashboard", "hosts");
+    for (host, url_start) in [
+        ("[::1]", "http://[::1]:"),
+        ("::1", "http://[::1]:"),
+        ("127.1", "http://127.0.0.1:"),
+        ("::ffff:127.0.0.1", "http://[::ffff:127.0.0.1]:"),
+        ("localhost", "http://"),
+    ] {
+        let mut srv = Child::start(&[&root], &["--host", host]);
+        assert!(srv.url.starts_with(url_start), "{host}: {}", srv.url);
+        srv.child.kill().unwrap();
+        let mut err = String::new();
+        std::io::Read::read_to_string(srv.child.stderr.as_mut().unwrap(), &mut err).unwrap();
+        assert!(!err.contains("warning"), "{host}: {err}");
+    }
+    // Only the 127.1 one is spoken to (127.0.0.1 only): it answers its own page.
+    let srv = Child::start(&[&root], &["--host", "127.1"]);
+    assert_eq!(http_get(&srv.url, "/").status, 200);
+    let o = bin().args(["dashboard"]).arg(&*root).args(["--host", "no such host.invalid"]).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("no such host.invalid"));
+}
+
+#[test]
+fn files_linked_out_fifos_and_devices_are_refused_and_said_so() {
+    use std::time::{Duration, Instant};
+    let root = empty_dir("dashboard", "links");
+    let cmp = root.join("cmp");
+    copy_dir(&committed().join("bicycle-compare-mlp-iterations"), &cmp);
+    let summary = cmp.join("summary.csv");
+    let csv_page = "/run/0/cmp?csv=summary";
+    let srv = Child::start(&[&root], &[]);
+    let page = |path: &str| serde_json::from_str::<Value>(&http_get(&srv.url, path).body).unwrap();
+
+    // A link out of the served folders: not read, and the page says why.
+    std::fs::remove_file(&summary).unwrap();
+    std::os::unix::fs::symlink("/etc/passwd", &summary).unwrap();
+    let r = http_get(&srv.url, csv_page);
+    assert!(!r.body.contains("root:"), "{}", r.body);
+    let notes = page("/run/0/cmp?json=1")["notes"].to_string();
+    assert!(notes.contains("summary.csv: not read: links out of the served folders"), "{notes}");
+    assert!(http_get(&srv.url, "/run/0/cmp").body.contains("links out of the served folders"));
+
+    // A FIFO: never opened for a blocking read; more requests than the old server had workers.
+    std::fs::remove_file(&summary).unwrap();
+    let c = std::ffi::CString::new(summary.to_str().unwrap()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    let t = Instant::now();
+    std::thread::scope(|s| {
+        for _ in 0..8 {
+            s.spawn(|| assert_eq!(http_get(&srv.url, csv_page).status, 200));
+        }
+    });
+    assert!(t.elapsed() < Duration::from_secs(10), "{:?}", t.elapsed());
+    assert!(page("/run/0/cmp?json=1")["notes"].to_string().contains("summary.csv: not read: not a regular file"));
+    assert_eq!(http_get(&srv.url, "/").status, 200, "still answering");
+
+    // A device (inside the folders, by a link to one inside): not a regular file either.
+    std::fs::remove_file(&summary).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &summary).unwrap();
+    assert!(page("/run/0/cmp?json=1")["notes"].to_string().contains("summary.csv"));
+    let png = cmp.join("zero.png");
+    std::os::unix::fs::symlink("/dev/zero", &png).unwrap();
+    assert_eq!(http_get(&srv.url, "/file/0/cmp/zero.png").status, 403);
+
+    // A regular file over the cap (sparse: no disk used) is not read whole.
+    std::fs::remove_file(&summary).unwrap();
+    std::fs::File::create(&summary).unwrap().set_len(40 << 20).unwrap();
+    let notes = page("/run/0/cmp?json=1")["notes"].to_string();
+    assert!(notes.contains("summary.csv: not read: larger than 32 MiB"), "{notes}");
+    // The lock file is read the same way (it decides "running").
+    std::os::unix::fs::symlink("/dev/zero", cmp.join("lock")).unwrap();
+    let home = page("/?json=1");
+    assert!(home["notes"].to_string().contains("cmp: lock: not read: links out of the served folders"), "{home}");
+}
+
+#[test]
+fn damaged_generation_lines_are_shown_and_births_name_the_right_parents() {
+    let root = empty_dir("dashboard", "damaged");
+    let dir = root.join("run");
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&dir)
+        .args(tiny_with(&["--generations", "3"]))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = read(dir.join("generations.jsonl"));
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 3);
+    // An individual of generation 2 with parents, and what its parents were.
+    let g2: Value = serde_json::from_str(lines[2]).unwrap();
+    let g1: Value = serde_json::from_str(lines[1]).unwrap();
+    let child = g2["individuals"].as_array().unwrap().iter().find(|i| i["birth"]["parents"].is_array()).unwrap();
+    let id = child["setting"].as_str().unwrap().to_string();
+    let parents: Vec<String> = child["birth"]["parents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| g1["individuals"][p.as_u64().unwrap() as usize]["setting"].as_str().unwrap().to_string())
+        .collect();
+
+    let s = serve(&[root.to_path_buf()]);
+    let index = child["index"].to_string();
+    let births = |s: &Served| {
+        let p = s.json(&format!("/run/0/run?setting={id}&json=1"));
+        table(&p, "births")["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r[0]["text"] == "2" && r[1]["text"].as_str() == Some(index.as_str()))
+            .map(|r| r[3]["text"].as_str().unwrap().to_string())
+    };
+    assert_eq!(births(&s).unwrap(), parents.join(" × "));
+
+    // One invalid UTF-8 byte in generation 1's line: that line is skipped, and the page says so.
+    let mut bytes = text.clone().into_bytes();
+    let at = lines[0].len() + 1 + lines[1].find("\"setting\":\"").unwrap() + 11;
+    bytes[at] = 0xff;
+    std::fs::write(dir.join("generations.jsonl"), &bytes).unwrap();
+    let page = s.json("/run/0/run?json=1");
+    assert_eq!(page["charts"]["generations"].as_array().unwrap().len(), 2);
+    let notes = page["notes"].to_string();
+    assert!(notes.contains("generations.jsonl: line 2 skipped: not UTF-8"), "{notes}");
+    assert!(s.ok("/run/0/run").contains("line 2 skipped"));
+    // Generation 2's parents were in the skipped line: not named from another generation.
+    let unread: Vec<String> = child["birth"]["parents"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| format!("#{p} of generation 1 (not read)"))
+        .collect();
+    assert_eq!(births(&s).unwrap(), unread.join(" × "));
+    // A record damaged as JSON: skipped and said so too.
+    std::fs::write(dir.join("generations.jsonl"), text.replacen("\"generation\"", "\"generation\":[", 1)).unwrap();
+    assert!(s.json("/run/0/run?json=1")["notes"].to_string().contains("line 1 skipped"));
+}
+
+// ---- What users of optuna-dashboard expect, on the server's side. ----
+
+#[test]
+fn csv_exports_the_stored_numbers_and_pages_carry_the_new_tables() {
+    let root = empty_dir("dashboard", "ux");
+    let dir = root.join("run");
+    tiny_search(&dir);
+    // A finished batch, and a rollout with its plots.
+    std::fs::create_dir_all(root.join("batch")).unwrap();
+    std::fs::write(root.join("batch/batch.json"), r#"[{"name":"a","kind":"search","state":"finished","dir":"run"}]"#)
+        .unwrap();
+    copy_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/rollouts/bicycle-bfqi-et"), &root.join("roll"));
+    let s = serve(&[root.to_path_buf()]);
+
+    // The runs list: whole (no scroll box), with start and update times; the batch finished.
+    let html = s.ok("/");
+    assert!(html.contains("<div class=\"whole\"><table data-table=\"runs\">"), "{}", short(&html));
+    let home = s.json("/?json=1");
+    let runs = table(&home, "runs")["rows"].as_array().unwrap().clone();
+    let row = |name: &str| runs.iter().find(|r| r[0]["text"].as_str().unwrap().ends_with(name)).unwrap().clone();
+    let created = common::json(dir.join("run.json"))["created"].as_str().unwrap().to_string();
+    assert_eq!(row("/run")[9]["text"], created.as_str());
+    assert!(row("/run")[10]["text"].as_str().unwrap().ends_with('Z'));
+    assert_eq!(row("/batch")[3]["text"], "finished");
+
+    // CSV: the stored numbers, not the page's four decimals.
+    let first: Value = serde_json::from_str(read(dir.join("generations.jsonl")).lines().next().unwrap()).unwrap();
+    let csv = s.ok("/run/0/run?csv=generations");
+    let best: f64 = csv.lines().nth(1).unwrap().split(',').nth(1).unwrap().parse().unwrap();
+    assert_eq!(best, first["stats"]["max"].as_f64().unwrap(), "{csv}");
+    assert!(csv.lines().nth(1).unwrap().split(',').nth(1).unwrap().len() > 6, "{csv}");
+
+    // Gene importance, named by its method, as a table and as chart data.
+    let page = s.json("/run/0/run?json=1");
+    let imp = table(&page, "importance");
+    assert!(imp["title"].as_str().unwrap().contains("η²"));
+    assert_eq!(rows(imp), 3);
+    assert_eq!(page["charts"]["importance"].as_array().unwrap().len(), 3);
+    let html = s.ok("/run/0/run");
+    assert!(html.contains("id=\"parallel\"") && html.contains("id=\"importance\""));
+
+    // A setting's losses, as chart data: one entry per dataset, iteration and network.
+    let id = settings(&dir).into_iter().next().unwrap();
+    let setting = s.json(&format!("/run/0/run?setting={id}&json=1"));
+    assert_eq!(setting["charts"]["losses"].as_array().unwrap().len(), rows(table(&setting, "networks")));
+    assert!(s.ok(&format!("/run/0/run?setting={id}")).contains("id=\"losses\""));
+
+    // The rollout: its fields, its episodes, its state and action plot and its GIF; no cut JSON.
+    let r = s.json("/run/0/roll?json=1");
+    assert_eq!(rows(table(&r, "episodes")), 1);
+    assert!(table(&r, "rollout").to_string().contains("bicycle"));
+    assert!(!r.to_string().contains('…'));
+    let html = s.ok("/run/0/roll");
+    assert!(html.contains("src=\"/file/0/roll/episode-0.png\"") && html.contains("src=\"/file/0/roll/episode-0.gif\""));
 }

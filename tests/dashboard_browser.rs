@@ -106,7 +106,9 @@ impl Browser {
 
     /// The value of a JavaScript expression in the page.
     fn eval(&mut self, expr: &str) -> Value {
-        let r = self.call("Runtime.evaluate", json!({ "expression": expr, "returnByValue": true })).unwrap();
+        let r = self
+            .call("Runtime.evaluate", json!({ "expression": expr, "returnByValue": true, "awaitPromise": true }))
+            .unwrap();
         assert!(r.get("exceptionDetails").is_none(), "{expr}: {r}");
         r["result"]["value"].clone()
     }
@@ -274,4 +276,85 @@ fn the_committed_bicycle_search_draws_every_setting() {
     println!("bicycle search ({n} settings): charts drawn {ms:.0} ms after navigation start");
     // Printed, not asserted: speed is the bench's (`bfqi-ga bench dashboard`), not a test's.
     browser.screenshot(&screenshots().join("bicycle.png"));
+}
+
+#[test]
+fn one_generation_is_drawn_tables_sort_and_filter_and_new_tables_arrive_live() {
+    let top = empty_dir("dashboard-browser", "ux");
+    let root = top.join("served");
+    let run = root.join("run");
+    let o = bin()
+        .args(["search", "cartpole", "--out"])
+        .arg(&run)
+        .args(tiny_with(&["--generations", "1"]))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    copy_dir(&run, &root.join("second"));
+    // Validation not yet there when the page opens.
+    let held = top.join("validation.json");
+    std::fs::rename(run.join("validation.json"), &held).unwrap();
+
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let server = Server::start(&[&root]);
+    browser.open(&format!("{}run/0/run", server.url));
+    let n = settings(&run).len();
+    browser.wait_for("document.querySelectorAll('#explorer .pt').length", &json!(n), 30);
+    // One generation: its points are drawn, not empty axes.
+    assert!(browser.eval("document.querySelectorAll('#fitness circle.gen').length").as_u64().unwrap() >= 3);
+    // The legend sits right of the plot area, not over it; the explorer has a colour bar.
+    let outside = "(() => { const s = document.querySelector('#fitness svg'), r = s.querySelector('rect'); \
+        const right = +r.getAttribute('x') + +r.getAttribute('width'); const l = [...s.querySelectorAll('.legend')]; \
+        return l.length > 0 && l.every((e) => +e.getAttribute('x') >= right); })()";
+    assert_eq!(browser.eval(outside), json!(true));
+    assert_eq!(browser.eval("document.querySelectorAll('#explorer .colourbar rect').length > 0"), json!(true));
+    // Parallel coordinates: a line per scored setting; importance bars, one per gene.
+    let page: Value = serde_json::from_str(&common::http_get(&server.url, "/run/0/run?json=1").body).unwrap();
+    let scored = page["charts"]["points"].as_array().unwrap().iter().filter(|p| p["fitness"].is_number()).count();
+    assert_eq!(browser.eval("document.querySelectorAll('#parallel .pc').length"), json!(scored));
+    assert_eq!(browser.eval("document.querySelectorAll('#importance .bar').length"), json!(3));
+    // A chart saves as SVG.
+    let svg = browser.eval(
+        "window.dashboardSvg('fitness').then((t) => t.startsWith('<svg') && t.includes('Fitness per generation'))",
+    );
+    assert_eq!(svg, json!(true));
+    browser.screenshot(&screenshots().join("search-1-generation.png"));
+
+    // Validation lands while the page is open: its table appears without a reload.
+    browser.eval("window.stayed = 'yes'");
+    std::fs::rename(&held, run.join("validation.json")).unwrap();
+    browser.wait_for("document.querySelectorAll('table[data-table=validation] tbody tr').length > 0", &json!(true), 30);
+    assert_eq!(browser.eval("window.stayed"), json!("yes"));
+
+    // The runs table: whole, sortable by a click on a heading, filtered by the box above it.
+    browser.open(&server.url);
+    let rows = "[...document.querySelectorAll('table[data-table=runs] tbody tr')].filter((r) => !r.hidden).map((r) => r.cells[0].textContent)";
+    browser.wait_for(&format!("{rows}.length"), &json!(2), 30);
+    // The script has run (its handlers are on the headings) and drawn from its first poll.
+    browser.wait_for("!!window.dashboardDrawn && window.dashboardDrawn.count > 0", &json!(true), 30);
+    browser.eval("document.querySelector('table[data-table=runs] th').click()");
+    let asc = browser.eval(rows);
+    browser.eval("document.querySelector('table[data-table=runs] th').click()");
+    let desc = browser.eval(rows);
+    let mut rev = asc.as_array().unwrap().clone();
+    rev.reverse();
+    assert_eq!(desc, json!(rev));
+    assert!(asc[0].as_str().unwrap().ends_with("/run"), "{asc}");
+    browser.eval(
+        "const f = document.querySelector('input.filter'); f.value = 'second'; f.dispatchEvent(new Event('input'))",
+    );
+    let shown = browser.eval(rows);
+    assert_eq!(shown.as_array().unwrap().len(), 1);
+    assert!(shown[0].as_str().unwrap().ends_with("/second"), "{shown}");
+    assert_eq!(
+        browser.eval("getComputedStyle(document.querySelector('table[data-table=runs]').parentNode).maxHeight"),
+        json!("none")
+    );
+    browser.screenshot(&screenshots().join("runs.png"));
 }

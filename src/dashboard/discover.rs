@@ -1,9 +1,68 @@
 //! The served directories and the runs found under them. A run is named by its root's index and
 //! its path below that root; every path a request names is resolved here, canonicalised, and
-//! refused unless it stays inside a root.
+//! refused unless it stays inside a root. Every file the dashboard reads is read by [`read_inside`]:
+//! inside a root once links are resolved, a regular file, at most [`MAX_FILE`] bytes.
 
 use crate::error::{Error, Result};
+use std::cell::RefCell;
+use std::io::Read;
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Component, Path, PathBuf};
+
+/// The largest file the dashboard reads (a search's records are kilobytes, a rollout's GIF a
+/// megabyte): what one request can make it hold of a file.
+pub const MAX_FILE: u64 = 32 << 20;
+
+/// Why a file was not read.
+#[derive(Debug, thiserror::Error)]
+pub enum Refused {
+    /// Nothing there.
+    #[error("missing")]
+    Missing,
+    /// A link (or a path) that leads out of the served folders.
+    #[error("links out of the served folders")]
+    Outside,
+    /// A FIFO, device, socket or directory.
+    #[error("not a regular file")]
+    NotRegular,
+    /// Over the cap.
+    #[error("larger than {} MiB", .0 >> 20)]
+    TooLarge(u64),
+    /// Unreadable.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// Reads `path`, which must resolve (links followed) inside `base` (a canonical root) and be a
+/// regular file of at most `cap` bytes. It is opened without following a last link and without
+/// blocking (a FIFO would block an open for reading until a writer came), and checked on the open
+/// file, so what is read is what was checked; the read stops at the cap even if the file grows.
+pub fn read_inside(base: &Path, path: &Path, cap: u64) -> std::result::Result<Vec<u8>, Refused> {
+    let real = path.canonicalize().map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => Refused::Missing,
+        _ => Refused::Io(e),
+    })?;
+    if !real.starts_with(base) {
+        return Err(Refused::Outside);
+    }
+    let f = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW | libc::O_CLOEXEC)
+        .open(&real)?;
+    let meta = f.metadata()?;
+    if !meta.is_file() {
+        return Err(Refused::NotRegular);
+    }
+    if meta.len() > cap {
+        return Err(Refused::TooLarge(cap));
+    }
+    let mut out = Vec::with_capacity(meta.len() as usize);
+    f.take(cap + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > cap {
+        return Err(Refused::TooLarge(cap));
+    }
+    Ok(out)
+}
 
 /// What a run directory holds, from the file that defines it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,7 +105,7 @@ impl Kind {
 }
 
 /// A run found under a root.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Run {
     /// Index of its root.
     pub root: usize,
@@ -56,6 +115,11 @@ pub struct Run {
     pub dir: PathBuf,
     /// What it is.
     pub kind: Kind,
+    /// Its root, canonical: every file it reads must resolve inside.
+    base: PathBuf,
+    /// What could not be read while building its page (files refused, lines skipped), shown on
+    /// the page.
+    notes: RefCell<Vec<String>>,
 }
 
 impl Run {
@@ -68,6 +132,51 @@ impl Run {
     pub fn label(&self, roots: &Roots) -> String {
         let base = roots.shown[self.root].clone();
         if self.rel.is_empty() { base } else { format!("{base}/{}", self.rel) }
+    }
+
+    /// The bytes of its file `name` (a path below the run), read by [`read_inside`]. A missing
+    /// file is `None` silently (many appear only later in a run); any other refusal is noted.
+    pub fn read(&self, name: &str) -> Option<Vec<u8>> {
+        match read_inside(&self.base, &self.dir.join(name), MAX_FILE) {
+            Ok(b) => Some(b),
+            Err(Refused::Missing) => None,
+            Err(e) => {
+                self.note(format!("{name}: not read: {e}"));
+                None
+            }
+        }
+    }
+
+    /// Its file `name` as text; invalid UTF-8 is noted and the file not used.
+    pub fn text(&self, name: &str) -> Option<String> {
+        String::from_utf8(self.read(name)?)
+            .map_err(|e| self.note(format!("{name}: not read: not UTF-8 (byte {})", e.utf8_error().valid_up_to())))
+            .ok()
+    }
+
+    /// Its JSON file `name` as a `T`; one that does not parse is noted, naming the field.
+    pub fn json<T: serde::de::DeserializeOwned>(&self, name: &str) -> Option<T> {
+        let text = self.text(name)?;
+        let parsed = serde_json::from_str(&text).or_else(|_| crate::error::from_json_text(&text, Path::new(name), ""));
+        parsed.map_err(|e| self.note(format!("not read: {e}"))).ok()
+    }
+
+    /// Whether a live process holds its lock (read as every other file is).
+    pub fn is_held(&self) -> bool {
+        self.text("lock").is_some_and(|t| crate::store::RunLock::held_by(&t))
+    }
+
+    /// Notes something the page could not show.
+    pub fn note(&self, what: String) {
+        let mut n = self.notes.borrow_mut();
+        if !n.contains(&what) {
+            n.push(what);
+        }
+    }
+
+    /// What was noted so far.
+    pub fn notes(&self) -> Vec<String> {
+        self.notes.borrow().clone()
     }
 }
 
@@ -128,7 +237,7 @@ impl Roots {
     fn run_at(&self, root: usize, dir: &Path, kind: Kind) -> Run {
         let rel = dir.strip_prefix(&self.dirs[root]).unwrap_or(Path::new(""));
         let rel = rel.iter().map(|c| c.to_string_lossy().into_owned()).collect::<Vec<_>>().join("/");
-        Run { root, rel, dir: dir.to_path_buf(), kind }
+        Run { root, rel, dir: dir.to_path_buf(), kind, base: self.dirs[root].clone(), notes: RefCell::default() }
     }
 
     /// The path `rel` (decoded, `/`-separated) below root `root`, if it exists and stays inside
@@ -148,6 +257,15 @@ impl Roots {
         let dir = self.resolve(root, rel)?;
         let kind = Kind::of(&dir)?;
         Some(self.run_at(root, &dir, kind))
+    }
+
+    /// The file `rel` below root `root`, read by [`read_inside`].
+    pub fn read(&self, root: usize, rel: &str) -> std::result::Result<Vec<u8>, Refused> {
+        let base = self.dirs.get(root).ok_or(Refused::Missing)?;
+        if Path::new(rel).components().any(|c| !matches!(c, Component::Normal(_))) {
+            return Err(Refused::Outside);
+        }
+        read_inside(base, &base.join(rel), MAX_FILE)
     }
 
     /// Whether `path` (canonical) lies inside some root.

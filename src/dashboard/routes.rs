@@ -6,7 +6,7 @@
 //!   (what the script polls for live updates);
 //! - `/file/R/PATH` a PNG or GIF inside a run; `/assets/…` the embedded script and style sheet.
 
-use super::discover::{Kind, Roots};
+use super::discover::{Kind, Refused, Roots};
 use super::html::{self, decode, escape};
 use super::table::Table;
 use serde_json::{Value, json};
@@ -38,9 +38,11 @@ struct Page {
     body: String,
     tables: Vec<Table>,
     charts: Value,
+    /// What could not be read (files refused, lines skipped): shown, so that a gap is seen.
+    notes: Vec<String>,
 }
 
-/// Answers one request.
+/// Answers one request (its method, and its target as sent).
 pub fn handle(roots: &Roots, method: &str, url: &str) -> Reply {
     if method != "GET" && method != "HEAD" {
         return Reply::error(405, "read-only: only GET");
@@ -61,12 +63,14 @@ pub fn handle(roots: &Roots, method: &str, url: &str) -> Reply {
         _ => {}
     }
     let page = if path == "/" {
+        let (runs, notes) = super::runs::table(roots);
         Page {
             title: "Runs".into(),
             crumbs: vec![],
             body: String::new(),
-            tables: vec![super::runs::table(roots)],
+            tables: vec![runs],
             charts: Value::Null,
+            notes,
         }
     } else if let Some(rest) = path.strip_prefix("/file/") {
         return file(roots, rest);
@@ -85,10 +89,11 @@ pub fn handle(roots: &Roots, method: &str, url: &str) -> Reply {
         };
     }
     if param("json").is_some() {
-        let body = json!({ "tables": page.tables, "charts": page.charts });
+        let body = json!({ "tables": page.tables, "charts": page.charts, "notes": page.notes });
         return Reply::text(200, "application/json", body.to_string());
     }
-    let tables: String = page.tables.iter().map(|t| t.html(url)).collect();
+    let mut tables = notes_html(&page.notes);
+    tables.extend(page.tables.iter().map(|t| t.html(url)));
     Reply::text(200, "text/html; charset=utf-8", html::page(&page.title, &page.crumbs, &page.body, &tables, url))
 }
 
@@ -109,8 +114,11 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
     let mut body = String::new();
     let (tables, charts) = match (run.kind, setting) {
         (Kind::Search, Some(id)) => {
-            let tables = super::search::setting_page(&run, id).ok_or_else(|| Reply::error(404, "no such setting"))?;
-            return Ok(Page { title: format!("Setting {id}"), crumbs, body, tables, charts: Value::Null });
+            let (tables, charts) =
+                super::search::setting_page(&run, id).ok_or_else(|| Reply::error(404, "no such setting"))?;
+            body.push_str("<section class=\"charts\"><div class=\"chart wide\" id=\"losses\"></div></section>");
+            let notes = run.notes();
+            return Ok(Page { title: format!("Setting {id}"), crumbs, body, tables, charts, notes });
         }
         (_, Some(_)) => return Err(Reply::error(404, "only a search has settings")),
         (Kind::Search, None) => {
@@ -118,7 +126,9 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
                 "<section class=\"charts\"><div class=\"chart\" id=\"fitness\"></div>\
                  <div class=\"chart\" id=\"explorer\"></div></section>\
                  <section class=\"charts\"><div class=\"chart small\" id=\"gene-delta\"></div>\
-                 <div class=\"chart small\" id=\"gene-patience\"></div><div class=\"chart small\" id=\"gene-activation\"></div></section>",
+                 <div class=\"chart small\" id=\"gene-patience\"></div><div class=\"chart small\" id=\"gene-activation\"></div></section>\
+                 <section class=\"charts\"><div class=\"chart wide\" id=\"parallel\"></div>\
+                 <div class=\"chart small\" id=\"importance\"></div></section>",
             );
             super::search::page(&run)
         }
@@ -131,11 +141,21 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
         }
         (Kind::Batch, None) => (super::runs::batch(&run, roots), Value::Null),
         (Kind::Rollout, None) => {
+            body.push_str(&gallery("States and actions", &super::runs::images(&run, ".png")));
             body.push_str(&gallery("Rollouts", &super::runs::images(&run, ".gif")));
             (super::runs::rollout(&run), Value::Null)
         }
     };
-    Ok(Page { title: format!("{} {label}", run.kind.name()), crumbs, body, tables, charts })
+    Ok(Page { title: format!("{} {label}", run.kind.name()), crumbs, body, tables, charts, notes: run.notes() })
+}
+
+/// The notes as a list above the tables (always there, so the script can fill it live).
+fn notes_html(notes: &[String]) -> String {
+    let items: String = notes.iter().map(|n| format!("<li>{}</li>", escape(n))).collect();
+    format!(
+        "<section id=\"notes\" class=\"notes\"{}><h2>Not shown</h2><ul>{items}</ul></section>",
+        if notes.is_empty() { " hidden" } else { "" }
+    )
 }
 
 fn gallery(title: &str, images: &[(String, String)]) -> String {
@@ -168,11 +188,9 @@ fn file(roots: &Roots, rest: &str) -> Reply {
     } else {
         return Reply::error(403, "only PNG and GIF files are served");
     };
-    match roots.resolve(root, rel).filter(|p| p.is_file()) {
-        Some(p) => match std::fs::read(&p) {
-            Ok(body) => Reply { status: 200, content_type, body },
-            Err(_) => Reply::error(404, "unreadable"),
-        },
-        None => Reply::error(404, "no such file"),
+    match roots.read(root, rel) {
+        Ok(body) => Reply { status: 200, content_type, body },
+        Err(Refused::Missing) => Reply::error(404, "no such file"),
+        Err(e) => Reply::error(403, &e.to_string()),
     }
 }

@@ -8,29 +8,42 @@ use super::table::{Cell, Table, num};
 use crate::ga::records::Phase;
 use crate::ga::units::describe;
 use crate::progress::human;
-use crate::store::{RunLock, read_json};
 use serde_json::{Value, json};
-use std::path::Path;
 
-/// The runs table: every search, comparison, batch and rollout under the roots.
-pub fn table(roots: &Roots) -> Table {
+/// The runs table: every search, comparison, batch and rollout under the roots; and what could
+/// not be read of them.
+pub fn table(roots: &Roots) -> (Table, Vec<String>) {
     let mut t = Table::new(
         "runs",
         "Runs",
-        &["run", "kind", "env", "state", "generation", "best fitness", "settings", "progress", "ETA"],
+        &[
+            "run",
+            "kind",
+            "env",
+            "state",
+            "generation",
+            "best fitness",
+            "settings",
+            "progress",
+            "ETA",
+            "started",
+            "updated",
+        ],
     );
+    t.full = true;
+    let mut notes = Vec::new();
     for run in roots.runs() {
-        t.push(row(&run, roots));
+        let mut r = row(&run, roots);
+        r.push(Cell::text(run.json::<Value>("run.json").map_or("—".into(), |i| plain(&i["created"]))));
+        r.push(Cell::text(updated(&run).map_or("—".into(), utc)));
+        t.push(r);
+        notes.extend(run.notes().into_iter().map(|n| format!("{}: {n}", run.label(roots))));
     }
-    t
-}
-
-fn info(dir: &Path) -> Value {
-    read_json(&dir.join("run.json")).unwrap_or_default()
+    (t, notes)
 }
 
 fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
-    let info = info(&run.dir);
+    let info: Value = run.json("run.json").unwrap_or_default();
     let env = info["env"].as_str().map(String::from);
     let cells = |state: String, generation: String, best: String, settings: String, progress: String, eta: String| {
         vec![
@@ -47,7 +60,7 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
     };
     let dash = || "—".to_string();
     match run.kind {
-        Kind::Search => match state(&run.dir) {
+        Kind::Search => match state(run) {
             Some((st, phase)) => cells(
                 phase.name().into(),
                 format!("{}/{}", st.generation, st.generations),
@@ -63,9 +76,9 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
         },
         Kind::Compare => {
             let done = std::fs::read_dir(run.dir.join("units")).map_or(0, |d| d.count());
-            let state = if RunLock::is_held(&run.dir) {
+            let state = if run.is_held() {
                 "running"
-            } else if run.dir.join("report.md").is_file() {
+            } else if crate::store::something_at(&run.dir.join("report.md")) {
                 "finished"
             } else {
                 "interrupted"
@@ -74,10 +87,17 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
             cells(state.into(), dash(), dash(), settings, format!("{done} units"), dash())
         }
         Kind::Batch => {
-            let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+            let jobs: Vec<Value> = run.json("batch.json").unwrap_or_default();
             let done = jobs.iter().filter(|j| j["state"] == "finished").count();
+            let state = if run.is_held() {
+                "running"
+            } else if !jobs.is_empty() && done == jobs.len() {
+                "finished"
+            } else {
+                "stopped"
+            };
             cells(
-                if RunLock::is_held(&run.dir) { "running" } else { "stopped" }.into(),
+                state.into(),
                 dash(),
                 dash(),
                 format!("{} jobs", jobs.len()),
@@ -86,7 +106,7 @@ fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
             )
         }
         Kind::Rollout => {
-            let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+            let r: Value = run.json("rollout.json").unwrap_or_default();
             let env = r["info"]["env"]["name"].as_str().unwrap_or("—").to_string();
             let mut c = cells("finished".into(), dash(), dash(), plain(&r["info"]["source"]), dash(), dash());
             c[2] = Cell::text(env);
@@ -115,7 +135,7 @@ pub fn images(run: &Run, ext: &str) -> Vec<(String, String)> {
 /// A comparison's page: its summary (curves with 95 % bands drawn from it) and the claims its
 /// report states, with the thesis's statement beside each verdict.
 pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
-    let text = std::fs::read_to_string(run.dir.join("summary.csv")).unwrap_or_default();
+    let text = run.text("summary.csv").unwrap_or_default();
     let mut lines = text.lines();
     let cols: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
     let mut t = Table::new("summary", "Summary (mean, std and 95 % interval per point)", &cols);
@@ -135,7 +155,7 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
         t.push(f.iter().map(|s| Cell::text(*s)).collect());
     }
     let mut claims = Table::new("claims", "Thesis claims", &["the thesis says", "verdict here", "rule", "this run"]);
-    let report = std::fs::read_to_string(run.dir.join("report.md")).unwrap_or_default();
+    let report = run.text("report.md").unwrap_or_default();
     let mut lines = report.lines().skip_while(|l| !l.starts_with("## Thesis claims")).peekable();
     while let Some(l) = lines.next() {
         if let Some(rest) = l.strip_prefix("- **") {
@@ -151,7 +171,7 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
 
 /// A batch's page: its jobs, linked to their run directories when those are served.
 pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
-    let jobs: Vec<Value> = read_json(&run.dir.join("batch.json")).unwrap_or_default();
+    let jobs: Vec<Value> = run.json("batch.json").unwrap_or_default();
     let mut t = Table::new("jobs", "Jobs", &["name", "kind", "state", "directory", "seconds", "result", "message"]);
     for j in &jobs {
         let dir = plain(&j["dir"]);
@@ -176,18 +196,82 @@ pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
     vec![t]
 }
 
-/// A rollout's page: its summary fields.
+/// A rollout's page: what was rolled out, and each episode (its state and action plots and its
+/// GIF are the page's images).
 pub fn rollout(run: &Run) -> Vec<Table> {
-    let r: Value = read_json(&run.dir.join("rollout.json")).unwrap_or_default();
+    let r: Value = run.json("rollout.json").unwrap_or_default();
     let mut t = Table::new("rollout", "Rollout", &["field", "value"]);
-    for (k, v) in r.as_object().into_iter().flatten() {
-        if k != "info" {
-            let s = plain(v);
-            t.push(vec![
-                Cell::text(k),
-                Cell::text(if s.len() > 200 { format!("{}…", &s[..s.floor_char_boundary(200)]) } else { s }),
-            ]);
+    let i = &r["info"];
+    let fields = [
+        ("env", &i["env"]["name"]),
+        ("algorithm", &i["algorithm"]),
+        ("learner", &i["learner"]),
+        ("source", &i["source"]),
+        ("model", &r["model"]),
+        ("start", &r["start"]),
+        ("max steps", &r["max_steps"]),
+        ("mean score", &r["result"]["score"]),
+        ("failures", &r["result"]["failures"]),
+        ("commit", &i["commit"]),
+    ];
+    for (k, v) in fields {
+        if !v.is_null() {
+            t.push(vec![Cell::text(k), Cell::text(plain(v))]);
         }
     }
-    vec![t]
+    let mut e = Table::new("episodes", "Episodes", &["episode", "score", "steps", "failed", "GIF"]);
+    for ep in r["episodes"].as_array().into_iter().flatten() {
+        let gif = plain(&ep["gif"]["file"]);
+        let url = format!("/file/{}/{}", run.root, super::html::encode_path(&join(&run.rel, &gif)));
+        e.push(vec![
+            Cell::text(plain(&ep["episode"])),
+            Cell::num(ep["score"].as_f64()),
+            Cell::text(plain(&ep["steps"])),
+            Cell::text(plain(&ep["failed"])),
+            if ep["gif"].is_object() { Cell::link(gif, url) } else { Cell::text("—") },
+        ]);
+    }
+    vec![t, e]
+}
+
+fn join(rel: &str, name: &str) -> String {
+    if rel.is_empty() { name.to_string() } else { format!("{rel}/{name}") }
+}
+
+/// When the run last changed: the newest of its own files (links not followed), in seconds.
+fn updated(run: &Run) -> Option<u64> {
+    std::fs::read_dir(&run.dir)
+        .ok()?
+        .flatten()
+        .filter_map(|e| e.path().symlink_metadata().ok()?.modified().ok())
+        .max()?
+        .duration_since(std::time::UNIX_EPOCH)
+        .ok()
+        .map(|d| d.as_secs())
+}
+
+/// Seconds since 1970 as RFC 3339 UTC (the form the run records use).
+fn utc(secs: u64) -> String {
+    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
+    // Civil-from-days (Howard Hinnant's algorithm), as store::now_utc.
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, rem % 3600 / 60, rem % 60)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn utc_matches_known_dates() {
+        assert_eq!(super::utc(0), "1970-01-01T00:00:00Z");
+        assert_eq!(super::utc(951_782_400), "2000-02-29T00:00:00Z");
+        assert_eq!(super::utc(1_796_272_000 + 3_723), "2026-12-03T05:28:43Z");
+    }
 }

@@ -12,17 +12,25 @@ pub struct Cell {
     /// Where it links to.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub link: Option<String>,
+    /// The stored value, when the text rounds it: what CSV exports and tables sort by.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub value: Option<String>,
 }
 
 impl Cell {
     /// A plain cell.
     pub fn text(t: impl Into<String>) -> Cell {
-        Cell { text: t.into(), link: None }
+        Cell { text: t.into(), link: None, value: None }
+    }
+
+    /// A number shown with four decimals ([`num`]), exported and sorted as stored.
+    pub fn num(v: Option<f64>) -> Cell {
+        Cell { text: num(v), link: None, value: v.map(|x| x.to_string()) }
     }
 
     /// A linked cell.
     pub fn link(t: impl Into<String>, url: impl Into<String>) -> Cell {
-        Cell { text: t.into(), link: Some(url.into()) }
+        Cell { text: t.into(), link: Some(url.into()), value: None }
     }
 }
 
@@ -37,6 +45,8 @@ pub struct Table {
     pub columns: Vec<String>,
     /// Rows of cells, as many as columns.
     pub rows: Vec<Vec<Cell>>,
+    /// Shown whole on the page, not in a scroll box (the runs list).
+    pub full: bool,
 }
 
 impl Table {
@@ -47,6 +57,7 @@ impl Table {
             title: title.into(),
             columns: columns.iter().map(|c| c.to_string()).collect(),
             rows: Vec::new(),
+            full: false,
         }
     }
 
@@ -61,7 +72,7 @@ impl Table {
         let mut out = line(self.columns.iter().map(String::as_str).collect());
         out.push('\n');
         for r in &self.rows {
-            out.push_str(&line(r.iter().map(|c| c.text.as_str()).collect()));
+            out.push_str(&line(r.iter().map(|c| c.value.as_deref().unwrap_or(&c.text)).collect()));
             out.push('\n');
         }
         out
@@ -71,10 +82,11 @@ impl Table {
     pub fn html(&self, page: &str) -> String {
         let sep = if page.contains('?') { '&' } else { '?' };
         let mut h = format!(
-            "<section><h2>{}</h2><p class=\"csv\"><a href=\"{}\">CSV</a> · {} rows</p><div class=\"scroll\"><table data-table=\"{}\"><thead><tr>",
+            "<section><h2>{}</h2><p class=\"csv\"><a href=\"{}\">CSV</a> · {} rows</p><div class=\"{}\"><table data-table=\"{}\"><thead><tr>",
             escape(&self.title),
             escape(&format!("{page}{sep}csv={}", self.name)),
             self.rows.len(),
+            if self.full { "whole" } else { "scroll" },
             escape(&self.name)
         );
         for c in &self.columns {
@@ -84,9 +96,13 @@ impl Table {
         for r in &self.rows {
             h.push_str("<tr>");
             for c in r {
+                let td = match &c.value {
+                    Some(v) => format!("<td data-v=\"{}\">", escape(v)),
+                    None => "<td>".into(),
+                };
                 match &c.link {
-                    Some(l) => h.push_str(&format!("<td><a href=\"{}\">{}</a></td>", escape(l), escape(&c.text))),
-                    None => h.push_str(&format!("<td>{}</td>", escape(&c.text))),
+                    Some(l) => h.push_str(&format!("{td}<a href=\"{}\">{}</a></td>", escape(l), escape(&c.text))),
+                    None => h.push_str(&format!("{td}{}</td>", escape(&c.text))),
                 }
             }
             h.push_str("</tr>");
@@ -121,5 +137,14 @@ mod tests {
         let h = t.html("/p");
         assert!(h.contains("&lt;script&gt;") && !h.contains("<script>"), "{h}");
         assert!(h.contains("/run?a=&lt;b&gt;"), "{h}");
+    }
+
+    #[test]
+    fn numbers_show_rounded_and_export_as_stored() {
+        let mut t = Table::new("t", "T", &["x"]);
+        t.push(vec![Cell::num(Some(0.123456789012))]);
+        t.push(vec![Cell::num(None)]);
+        assert_eq!(t.csv(), "x\n0.123456789012\n—\n");
+        assert!(t.html("/").contains("<td data-v=\"0.123456789012\">0.1235</td>"));
     }
 }

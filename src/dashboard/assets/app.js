@@ -44,11 +44,13 @@ function fmt(v) {
 }
 // A frame: axes, ticks, title; returns the scales and the SVG.
 // `xaxis`: "log" (the data are log10 values), "whole" (generations, categories) or plain.
-function frame(box, title, xr, yr, xlabel, ylabel, xaxis) {
+function frame(box, title, xr, yr, xlabel, ylabel, xaxis, right) {
   const xlog = xaxis === "log";
   box.textContent = "";
+  saveLinks(box);
   const W = box.clientWidth || 560, H = box.clientHeight || 360;
-  const m = { l: 58, r: 12, t: 22, b: 36 };
+  // Legends and the colour bar sit in the right margin, never over the data.
+  const m = { l: 58, r: right || 12, t: 22, b: 36 };
   const svg = el("svg", { width: W, height: H, viewBox: "0 0 " + W + " " + H }, box);
   const sx = (x) => m.l + ((x - xr[0]) / (xr[1] - xr[0])) * (W - m.l - m.r);
   const sy = (y) => H - m.b - ((y - yr[0]) / (yr[1] - yr[0])) * (H - m.t - m.b);
@@ -60,8 +62,31 @@ function frame(box, title, xr, yr, xlabel, ylabel, xaxis) {
   text(svg, (W + m.l) / 2, H - 4, xlabel, "middle");
   const yl = text(svg, 12, (H - m.b + m.t) / 2, ylabel, "middle");
   yl.setAttribute("transform", "rotate(-90 12 " + (H - m.b + m.t) / 2 + ")");
-  return { svg: svg, sx: sx, sy: sy, W: W };
+  return { svg: svg, sx: sx, sy: sy, W: W, H: H, m: m };
 }
+// A "save SVG" button on a chart: the chart as a standalone SVG file.
+function saveLinks(box) {
+  const a = document.createElement("button");
+  a.className = "save";
+  a.textContent = "save SVG";
+  a.addEventListener("click", () => {
+    const url = URL.createObjectURL(svgBlob(box));
+    const d = document.createElement("a");
+    d.href = url;
+    d.download = (box.id || "chart") + ".svg";
+    d.click();
+    setTimeout(() => URL.revokeObjectURL(url), 1000);
+  });
+  box.appendChild(a);
+}
+function svgBlob(box) {
+  const svg = box.querySelector("svg").cloneNode(true);
+  svg.setAttribute("xmlns", NS);
+  const style = "<style>text{font:11px sans-serif;fill:#333}</style>";
+  const s = new XMLSerializer().serializeToString(svg).replace(/^(<svg[^>]*>)/, "$1" + style);
+  return new Blob([s], { type: "image/svg+xml" });
+}
+window.dashboardSvg = (id) => svgBlob(document.getElementById(id)).text();
 function line(f, pts, color, dash) {
   const d = pts.filter((p) => p[1] !== null && isFinite(p[1])).map((p, i) => (i ? "L" : "M") + f.sx(p[0]) + "," + f.sy(p[1])).join("");
   if (d) el("path", { d: d, fill: "none", stroke: color, "stroke-width": 2, "stroke-dasharray": dash || "" }, f.svg);
@@ -74,20 +99,38 @@ function band(f, pts, color) {
   el("path", { d: up + down + "Z", fill: color, "fill-opacity": 0.2, stroke: "none" }, f.svg);
 }
 function legend(f, items) {
+  const x = f.W - f.m.r + 8;
   items.forEach((it, i) => {
-    el("rect", { x: f.W - 150, y: 28 + i * 14, width: 10, height: 10, fill: it[1] }, f.svg);
-    text(f.svg, f.W - 136, 37 + i * 14, it[0]);
+    el("rect", { class: "legend", x: x, y: 28 + i * 14, width: 10, height: 10, fill: it[1] }, f.svg);
+    text(f.svg, x + 14, 37 + i * 14, it[0]);
   });
+}
+// A vertical colour bar for fitness in the right margin, worst at the bottom.
+function colourBar(f, fr) {
+  const x = f.W - f.m.r + 14, top = f.m.t + 16, h = f.H - f.m.t - f.m.b - 32;
+  const g = el("g", { class: "colourbar" }, f.svg);
+  for (let i = 0; i < 20; i++) {
+    el("rect", { x: x, y: top + (h * i) / 20, width: 12, height: h / 20 + 0.5, fill: colour(1 - i / 20) }, g);
+  }
+  text(g, x, top - 4, "fitness");
+  text(g, x + 16, top + 8, fmt(fr[1]));
+  text(g, x + 16, top + h, fmt(fr[0]));
 }
 
 function fitnessChart(box, c) {
   const g = c.generations;
   const ys = g.flatMap((r) => [r.min, r.max, r.best_so_far]).concat(c.reference ? [c.reference.value] : []);
-  const f = frame(box, "Fitness per generation", extent(g.map((r) => r.g)), extent(ys), "generation", "fitness", "whole");
+  const f = frame(box, "Fitness per generation", extent(g.map((r) => r.g)), extent(ys), "generation", "fitness", "whole", 130);
   band(f, g.map((r) => [r.g, r.min, r.max]), "#4682b4");
   line(f, g.map((r) => [r.g, r.mean]), "#4682b4");
   line(f, g.map((r) => [r.g, r.best]), "#2a2");
   line(f, g.map((r) => [r.g, r.best_so_far]), "#c60", "5,3");
+  // Dots as well as lines: a single generation is a point, not an empty frame.
+  g.forEach((r) => {
+    [[r.min, "#a9c4dc"], [r.max, "#a9c4dc"], [r.mean, "#4682b4"], [r.best_so_far, "#c60"]].forEach((v) => {
+      if (v[0] !== null && isFinite(v[0])) el("circle", { class: "gen", cx: f.sx(r.g), cy: f.sy(v[0]), r: 3, fill: v[1] }, f.svg);
+    });
+  });
   const items = [["min–max", "#a9c4dc"], ["mean", "#4682b4"], ["best", "#2a2"], ["best so far", "#c60"]];
   if (c.reference) {
     const x = extent(g.map((r) => r.g));
@@ -124,8 +167,61 @@ function fitnessRange(pts) {
 function explorer(box, c) {
   const pts = c.points, fr = fitnessRange(pts);
   const f = frame(box, "Population: " + pts.length + " settings (○ sigmoid □ tanh △ relu; grey pruned, red diverged)",
-    extent(pts.map((p) => Math.log10(p.delta_min))), extent(pts.map((p) => p.patience)), "δ_min (log10)", "patience", "log");
+    extent(pts.map((p) => Math.log10(p.delta_min))), extent(pts.map((p) => p.patience)), "δ_min (log10)", "patience", "log", 70);
   pts.forEach((p) => marker(f, p, f.sx(Math.log10(p.delta_min)), f.sy(p.patience), fr, "pt"));
+  colourBar(f, fr);
+}
+// Parallel coordinates: one line per scored setting across activation, δ_min (log), patience
+// and fitness, coloured by fitness.
+function parallel(box, c) {
+  const pts = c.points.filter((p) => p.fitness !== null && isFinite(p.fitness)), fr = fitnessRange(pts);
+  const axes = [
+    ["activation", (p) => ACT[p.activation], [-0.3, 2.3]],
+    ["δ_min (log10)", (p) => Math.log10(p.delta_min), extent(pts.map((p) => Math.log10(p.delta_min)))],
+    ["patience", (p) => p.patience, extent(pts.map((p) => p.patience))],
+    ["fitness", (p) => p.fitness, fr],
+  ];
+  const f = frame(box, "Parallel coordinates: " + pts.length + " scored settings", [0, axes.length - 1], [0, 1], "", "", null, 70);
+  const y = (a, p) => f.sy((a[1](p) - a[2][0]) / (a[2][1] - a[2][0]));
+  pts.forEach((p) => {
+    const pl = el("polyline", { class: "pc", fill: "none", stroke: colour((p.fitness - fr[0]) / (fr[1] - fr[0])), "stroke-opacity": 0.6,
+      points: axes.map((a, i) => f.sx(i) + "," + y(a, p)).join(" ") }, f.svg);
+    el("title", {}, pl).textContent = p.id + " fitness " + fmt(p.fitness);
+  });
+  axes.forEach((a, i) => {
+    el("line", { x1: f.sx(i), x2: f.sx(i), y1: f.sy(0), y2: f.sy(1), stroke: "#333" }, f.svg);
+    text(f.svg, f.sx(i), f.sy(0) + 14, a[0], "middle");
+    text(f.svg, f.sx(i) + 3, f.sy(1) + 10, i === 0 ? "relu" : fmt(a[2][1]));
+    text(f.svg, f.sx(i) + 3, f.sy(0) - 3, i === 0 ? "sigmoid" : fmt(a[2][0]));
+  });
+  colourBar(f, fr);
+}
+function importanceChart(box, c) {
+  const imp = c.importance || [];
+  const f = frame(box, "Gene importance (η², correlation ratio)", [-0.5, imp.length - 0.5], [0, 1], "gene", "η²", "whole");
+  imp.forEach((g, i) => {
+    el("rect", { class: "bar", x: f.sx(i) - 20, width: 40, y: f.sy(g.eta2), height: f.sy(0) - f.sy(g.eta2), fill: "#4682b4" }, f.svg);
+    text(f.svg, f.sx(i), f.sy(0) - 4 - (f.sy(0) - f.sy(g.eta2)), g.gene + " " + fmt(g.eta2), "middle");
+  });
+}
+// A setting's networks: the loss each stopped at, per FQI iteration (train solid, validation dashed).
+function lossChart(box, c) {
+  const ls = c.losses.filter((l) => l.train > 0 || l.val > 0);
+  if (!ls.length) { box.textContent = "no losses recorded"; return; }
+  const lg = (v) => (v > 0 ? Math.log10(v) : null);
+  const ys = ls.flatMap((l) => [lg(l.train), lg(l.val)]);
+  const f = frame(box, "Network losses per FQI iteration (log10; train solid, validation dashed)",
+    extent(ls.map((l) => l.iteration)), extent(ys), "iteration", "loss (log10)", "whole", 130);
+  const groups = {};
+  ls.forEach((l) => { const k = "dataset " + l.dataset + " net " + l.network; (groups[k] = groups[k] || []).push(l); });
+  const palette = ["#4682b4", "#c60", "#2a2", "#a0a", "#a00", "#088", "#660", "#555", "#f80"];
+  Object.keys(groups).forEach((k, i) => {
+    const col = palette[i % palette.length], g = groups[k].sort((a, b) => a.iteration - b.iteration);
+    line(f, g.map((l) => [l.iteration, lg(l.train)]), col);
+    line(f, g.map((l) => [l.iteration, lg(l.val)]), col, "4,3");
+    g.forEach((l) => { if (l.train > 0) el("circle", { class: "loss", cx: f.sx(l.iteration), cy: f.sy(lg(l.train)), r: 2.5, fill: col }, f.svg); });
+  });
+  legend(f, Object.keys(groups).slice(0, 20).map((k, i) => [k, palette[i % palette.length]]));
 }
 function geneChart(box, c, title, gx, label, xaxis) {
   const pts = c.points, fr = fitnessRange(pts);
@@ -159,7 +255,11 @@ function curves(section, c) {
     box.className = "chart";
     section.appendChild(box);
     const ys = pick.flatMap((s) => [s.mean - s.ci95, s.mean + s.ci95]);
-    const f = frame(box, title + " (95 % bands)", extent(pick.map(xOf)), extent(ys), xlabel, "score");
+    // Sample sizes on a log axis, as the report's plot has them.
+    const xo = xOf;
+    if (analysis === "samples") xOf = (s) => Math.log10(xo(s));
+    const f = frame(box, title + " (95 % bands)", extent(pick.map(xOf)), extent(ys), analysis === "samples" ? xlabel + " (log10)" : xlabel,
+      "score", analysis === "samples" ? "log" : null, 80);
     for (const alg of ["fqi", "bfqi"]) {
       const ps = pick.filter((s) => s.algorithm === alg).sort((a, b) => xOf(a) - xOf(b));
       band(f, ps.map((s) => [xOf(s), s.mean - s.ci95, s.mean + s.ci95]), colours[alg]);
@@ -187,13 +287,96 @@ function draw(charts) {
     geneChart(get("gene-activation"), charts, "Fitness against activation (0 sigmoid, 1 tanh, 2 relu)",
       (p) => ACT[p.activation] + ((p.patience * 7919) % 100) / 400 - 0.125, "activation", "whole");
   }
+  if (charts.points && get("parallel")) parallel(get("parallel"), charts);
+  if (charts.importance && get("importance")) importanceChart(get("importance"), charts);
+  if (charts.losses && get("losses")) lossChart(get("losses"), charts);
   if (charts.series && get("curves")) curves(get("curves"), charts);
+}
+
+// Sorting (click a heading; again to reverse) and filtering (the box above each table), kept
+// across live refreshes. Numbers sort as numbers, by their stored value.
+const views = {};
+function cellKey(td) {
+  const v = td.dataset.v !== undefined ? td.dataset.v : td.textContent;
+  const n = Number(v);
+  return v !== "" && isFinite(n) ? n : v;
+}
+function applyView(table) {
+  const view = views[table.dataset.table] || {};
+  const rows = Array.from(table.tBodies[0].rows);
+  if (view.col !== undefined) {
+    rows.sort((a, b) => {
+      const x = cellKey(a.cells[view.col]), y = cellKey(b.cells[view.col]);
+      const c = typeof x === typeof y ? (x < y ? -1 : x > y ? 1 : 0) : typeof x === "number" ? -1 : 1;
+      return view.desc ? -c : c;
+    });
+    rows.forEach((r) => table.tBodies[0].appendChild(r));
+  }
+  const q = (view.filter || "").toLowerCase();
+  rows.forEach((r) => { r.hidden = q !== "" && !r.textContent.toLowerCase().includes(q); });
+  Array.from(table.tHead.rows[0].cells).forEach((th, i) => {
+    th.dataset.sort = view.col === i ? (view.desc ? "desc" : "asc") : "";
+  });
+}
+function enhance(table) {
+  if (table.dataset.enhanced) return;
+  table.dataset.enhanced = "1";
+  const name = table.dataset.table;
+  views[name] = views[name] || {};
+  const box = document.createElement("input");
+  box.type = "search";
+  box.className = "filter";
+  box.placeholder = "filter rows";
+  box.addEventListener("input", () => { views[name].filter = box.value; applyView(table); });
+  table.closest("section").insertBefore(box, table.parentNode);
+  Array.from(table.tHead.rows[0].cells).forEach((th, i) => {
+    th.addEventListener("click", () => {
+      const v = views[name];
+      v.desc = v.col === i ? !v.desc : false;
+      v.col = i;
+      applyView(table);
+    });
+  });
+}
+document.querySelectorAll("table[data-table]").forEach(enhance);
+
+// A table the page did not have when it loaded (validation, once it runs): added at the end.
+function addTable(t) {
+  const sec = document.createElement("section");
+  const h = document.createElement("h2");
+  h.textContent = t.title;
+  const p = document.createElement("p");
+  p.className = "csv";
+  const a = document.createElement("a");
+  a.setAttribute("href", page + (page.includes("?") ? "&" : "?") + "csv=" + encodeURIComponent(t.name));
+  a.textContent = "CSV";
+  p.appendChild(a);
+  p.appendChild(document.createTextNode(""));
+  const div = document.createElement("div");
+  div.className = "scroll";
+  const table = document.createElement("table");
+  table.dataset.table = t.name;
+  const tr = table.createTHead().insertRow();
+  t.columns.forEach((c) => { const th = document.createElement("th"); th.textContent = c; tr.appendChild(th); });
+  table.appendChild(document.createElement("tbody"));
+  div.appendChild(table);
+  sec.append(h, p, div);
+  document.querySelector("main").appendChild(sec);
+  enhance(table);
+  return table;
+}
+function notes(list) {
+  const sec = document.getElementById("notes");
+  if (!sec) return;
+  const ul = sec.querySelector("ul");
+  ul.textContent = "";
+  (list || []).forEach((n) => { const li = document.createElement("li"); li.textContent = n; ul.appendChild(li); });
+  sec.hidden = !(list && list.length);
 }
 
 // Replaces a table's rows with the polled ones (text and links only).
 function refill(t) {
-  const table = document.querySelector('table[data-table="' + CSS.escape(t.name) + '"]');
-  if (!table) return;
+  const table = document.querySelector('table[data-table="' + CSS.escape(t.name) + '"]') || addTable(t);
   const body = document.createElement("tbody");
   t.rows.forEach((r) => {
     const tr = document.createElement("tr");
@@ -205,6 +388,7 @@ function refill(t) {
         a.textContent = c.text;
         td.appendChild(a);
       } else td.textContent = c.text;
+      if (c.value !== undefined) td.dataset.v = c.value;
       tr.appendChild(td);
     });
     body.appendChild(tr);
@@ -212,6 +396,7 @@ function refill(t) {
   table.replaceChild(body, table.tBodies[0]);
   const count = table.closest("section").querySelector(".csv");
   if (count && count.lastChild) count.lastChild.textContent = " · " + t.rows.length + " rows";
+  applyView(table);
 }
 
 let last = "";
@@ -224,6 +409,7 @@ function poll() {
       last = s;
       const p = JSON.parse(s);
       p.tables.forEach(refill);
+      notes(p.notes);
       draw(p.charts);
     })
     .catch(() => { document.getElementById("live").textContent = "not reachable, retrying"; })
