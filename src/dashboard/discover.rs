@@ -224,6 +224,9 @@ impl Roots {
                             .flatten()
                             .filter(|e| e.file_type().is_ok_and(|t| t.is_dir()))
                             .filter(|e| !SKIP.iter().any(|s| e.file_name() == *s))
+                            // Hidden folders: a run still being built (`.<name>.tmp…`, renamed
+                            // into place when whole) is not a run yet.
+                            .filter(|e| !e.file_name().to_string_lossy().starts_with('.'))
                             .map(|e| e.path()),
                     );
                 }
@@ -275,5 +278,24 @@ impl Roots {
             let rel = p.strip_prefix(d).unwrap_or(Path::new(""));
             (i, rel.iter().map(|c| c.to_string_lossy().into_owned()).collect::<Vec<_>>().join("/"))
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_still_being_built_in_a_hidden_folder_is_not_listed() {
+        let root = std::env::temp_dir().join(format!("bfqi-discover-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        for name in ["done", ".done.tmp123-host"] {
+            std::fs::create_dir_all(root.join(name)).unwrap();
+            std::fs::write(root.join(name).join("compare.json"), "{}").unwrap();
+        }
+        let roots = Roots { dirs: vec![root.clone()], shown: vec![root.display().to_string()] };
+        let rels: Vec<String> = roots.runs().into_iter().map(|r| r.rel).collect();
+        std::fs::remove_dir_all(&root).unwrap();
+        assert_eq!(rels, ["done"]);
     }
 }
