@@ -15,10 +15,6 @@ use super::lanes::{Arith, Lanes, Multi, V};
 /// Vectors per chunk (128 rows): a chunk's activations and deltas stay in L1. Results do not
 /// depend on it (sums run per lane over the rows in batch order).
 pub const CHUNK: usize = 8;
-/// Output units per register tile.
-const MO: usize = 5;
-/// Vectors (or inputs) per register tile.
-const NV: usize = 4;
 
 /// `e^−x`, after Cephes `expf`: `x = m·ln 2 + r` (Cody–Waite, ln 2 = 0.693359375 − 2.12194440·10⁻⁴),
 /// `e^−r` by the degree-7 Taylor-like polynomial of `expf`, times `2⁻ᵐ` built in the exponent
@@ -118,17 +114,24 @@ macro_rules! with_act {
 }
 pub(crate) use with_act;
 
-/// Vectors per interleaved group in [`activate`] (see [`Multi`]).
-const GROUP: usize = 4;
-
-/// Applies `f` in place to the first `nv` vectors of each of `units` rows of a chunk buffer.
+/// Applies `f` in place to the first `nv` vectors of each of `units` rows of a chunk buffer,
+/// [`Lanes::ACT_GROUP`] vectors interleaved (see [`Multi`]).
 #[inline(always)]
 pub fn activate<L: Lanes, F: ActFn>(f: F, buf: &mut [V], units: usize, nv: usize) {
+    match L::ACT_GROUP {
+        1 => activate_in::<L, F, 1>(f, buf, units, nv),
+        2 => activate_in::<L, F, 2>(f, buf, units, nv),
+        _ => activate_in::<L, F, 4>(f, buf, units, nv),
+    }
+}
+
+#[inline(always)]
+fn activate_in<L: Lanes, F: ActFn, const G: usize>(f: F, buf: &mut [V], units: usize, nv: usize) {
     for u in 0..units {
         let row = &mut buf[u * CHUNK..u * CHUNK + nv];
-        let mut groups = row.chunks_exact_mut(GROUP);
+        let mut groups = row.chunks_exact_mut(G);
         for grp in &mut groups {
-            let mut z = Multi([L::splat(0.0); GROUP]);
+            let mut z = Multi([L::splat(0.0); G]);
             for (zg, v) in z.0.iter_mut().zip(grp.iter()) {
                 *zg = L::load(v);
             }
@@ -281,11 +284,12 @@ pub fn dense<L: Lanes, F: Finish>(
     fin.check(n_out);
     let mut o0 = 0;
     while o0 < n_out {
-        let mo = (n_out - o0).min(MO);
-        // Whole tiles of NV vectors, then single vectors (only a batch's last chunk has a tail).
+        let mo = (n_out - o0).min(L::TILE_OUT);
+        // Whole tiles of TILE_VECS vectors, then single vectors (only a batch's last chunk has a
+        // tail).
         let mut v0 = 0;
         while v0 < nv {
-            let nt = if nv - v0 >= NV { NV } else { 1 };
+            let nt = if nv - v0 >= L::TILE_VECS { L::TILE_VECS } else { 1 };
             macro_rules! tile {
                 ($($a:literal $b:literal)*) => {
                     match (mo, nt) {
@@ -350,10 +354,10 @@ pub fn outer<L: Lanes>(d: &[V], a: &[V], n_out: usize, n_in: usize, nv: usize, g
     assert!(g.len() >= n_out * n_in && gb.len() >= n_out);
     let mut o0 = 0;
     while o0 < n_out {
-        let mo = (n_out - o0).min(MO);
+        let mo = (n_out - o0).min(L::TILE_OUT);
         let mut i0 = 0;
         while i0 < n_in {
-            let mi = (n_in - i0).min(NV);
+            let mi = (n_in - i0).min(L::TILE_INPUTS);
             macro_rules! tile {
                 ($($a:literal $b:literal)*) => {
                     match (mo, mi) {

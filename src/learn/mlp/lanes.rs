@@ -94,6 +94,17 @@ pub trait Lanes: Arith {
     /// The integer vectors of the same build.
     type Words: Words;
 
+    /// Output units per register tile of `kernels::dense` and `kernels::outer` (at most 5).
+    /// Tiles only group independent sums, each still summed in its fixed order, so these sizes
+    /// change the speed, never the bits; each build picks what fits its registers.
+    const TILE_OUT: usize = 5;
+    /// Vectors per tile of `kernels::dense` (4 or 1).
+    const TILE_VECS: usize = 4;
+    /// Inputs per tile of `kernels::outer` (at most 4).
+    const TILE_INPUTS: usize = 4;
+    /// Vectors activated together in `kernels::activate` (4, 2 or 1).
+    const ACT_GROUP: usize = 4;
+
     /// Reads a vector.
     fn load(v: &V) -> Self;
     /// Writes a vector.
@@ -518,6 +529,13 @@ impl Words for [__m256i; 2] {
 #[cfg(target_arch = "x86_64")]
 impl Lanes for Avx2 {
     type Words = [__m256i; 2];
+    // A vector is two of the 16 ymm registers (AVX-512 has 32 zmm, one per vector): the shared
+    // 5 × 4 tile would hold 40 accumulators and spill. 5 × 1 keeps 10 accumulators, the inputs
+    // and a broadcast weight in registers; `outer` 5 × 1 likewise, and activations two vectors
+    // at a time (each polynomial step then has four independent ymm operations).
+    const TILE_VECS: usize = 1;
+    const TILE_INPUTS: usize = 1;
+    const ACT_GROUP: usize = 2;
     #[inline(always)]
     fn load(v: &V) -> Self {
         // SAFETY: see `Avx512`; `V` is 64-byte aligned.
