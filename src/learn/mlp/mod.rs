@@ -25,6 +25,7 @@ mod kernels;
 mod lanes;
 mod net;
 mod optim;
+mod peak;
 mod shuffle;
 #[cfg(test)]
 mod tests;
@@ -305,7 +306,7 @@ pub fn kernel_isa() -> &'static str {
 /// This core's FP32 peak in GFLOP/s on the kernels' build (independent FMA chains; an FMA is 2
 /// FLOPs per lane), the best of short runs over about `seconds`.
 pub fn fma_peak_gflops(seconds: f64) -> f64 {
-    lanes::fma_peak_gflops(cpu::mlp(), seconds)
+    peak::fma_peak_gflops(cpu::mlp(), seconds)
 }
 
 /// The arithmetic of one training epoch of a network, as the kernels execute it.
