@@ -104,6 +104,9 @@ pub trait Lanes: Arith {
     const TILE_INPUTS: usize = 4;
     /// Vectors activated together in `kernels::activate` (4, 2 or 1).
     const ACT_GROUP: usize = 4;
+    /// Independent FMA chains that measure the build's peak (`peak`): enough to cover the FMA
+    /// latency on two ports, few enough to stay in registers.
+    const PEAK_CHAINS: usize = 24;
 
     /// Reads a vector.
     fn load(v: &V) -> Self;
@@ -536,6 +539,7 @@ impl Lanes for Avx2 {
     const TILE_VECS: usize = 1;
     const TILE_INPUTS: usize = 1;
     const ACT_GROUP: usize = 2;
+    const PEAK_CHAINS: usize = 6;
     #[inline(always)]
     fn load(v: &V) -> Self {
         // SAFETY: see `Avx512`; `V` is 64-byte aligned.
