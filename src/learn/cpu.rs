@@ -5,7 +5,9 @@
 //! CPU has, capped by the environment variable `BFQI_ISA` when it is set: `avx512`, `avx2` or
 //! `portable` (any other value caps nothing). `BFQI_MLP_ISA`, its former name, is read when
 //! `BFQI_ISA` is not set. The cap is how the slower paths are benchmarked and how the test suite is
-//! run on each of them (`BFQI_ISA=portable cargo test --release`).
+//! run on each of them (`BFQI_ISA=portable cargo test --release`). On aarch64 the MLP runs at
+//! `neon` (every aarch64 CPU has it; `BFQI_ISA=portable` caps it), the Extra-Trees at `portable`
+//! (compiled for the aarch64 baseline, where the compiler vectorises with NEON).
 //!
 //! A level needs different features for each learner, as each compiles its kernels with its own:
 //!
@@ -13,6 +15,7 @@
 //! |---|---|---|
 //! | `avx512` | avx512f, avx512vl, avx512bw, avx512dq, popcnt | avx512f, avx512vl, avx2, fma |
 //! | `avx2` | avx2 | avx2, fma |
+//! | `neon` | — (runs `portable`) | aarch64 baseline |
 //! | `portable` | — | — |
 
 use std::sync::OnceLock;
@@ -28,6 +31,8 @@ pub(crate) enum Isa {
     /// Plain loops: baseline x86-64 (where the MLP's `mul_add` calls the C library's exact but
     /// slow `fmaf`, so it is a last resort), or any other target (e.g. aarch64, with native FMA).
     Portable,
+    /// NEON on aarch64 (part of its baseline, with fused multiply-adds): 4 lanes per instruction.
+    Neon,
     /// AVX2 (with FMA for the MLP): 8 lanes per instruction.
     Avx2,
     /// AVX-512 (AVX-512F with FMA for the MLP): 16 lanes per instruction.
@@ -84,6 +89,7 @@ fn detected() -> &'static Detected {
 fn cap(value: Option<&str>) -> Isa {
     match value {
         Some("portable") => Isa::Portable,
+        Some("neon") => Isa::Neon,
         Some("avx2") => Isa::Avx2,
         _ => Isa::Avx512,
     }
@@ -94,6 +100,7 @@ impl Detected {
         match isa {
             Isa::Avx512 => self.avx512f && self.avx512vl && self.avx512bw && self.avx512dq && self.popcnt,
             Isa::Avx2 => self.avx2,
+            Isa::Neon => false,
             Isa::Portable => true,
         }
     }
@@ -102,6 +109,7 @@ impl Detected {
         match isa {
             Isa::Avx512 => self.avx512f && self.avx512vl && self.avx2 && self.fma,
             Isa::Avx2 => self.avx2 && self.fma,
+            Isa::Neon => cfg!(target_arch = "aarch64"),
             Isa::Portable => true,
         }
     }
@@ -109,10 +117,11 @@ impl Detected {
 
 impl Isa {
     /// Every level, best first.
-    pub(crate) const ALL: [Isa; 3] = [Isa::Avx512, Isa::Avx2, Isa::Portable];
+    pub(crate) const ALL: [Isa; 4] = [Isa::Avx512, Isa::Avx2, Isa::Neon, Isa::Portable];
 
     /// Whether this CPU has every feature the Extra-Trees kernels of this level are compiled with
-    /// (whatever the cap).
+    /// (whatever the cap). Only the x86-64 builds ask: elsewhere the trees have one build.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     pub(crate) fn runs_extra_trees(self) -> bool {
         detected().runs_extra_trees(self)
     }
@@ -128,6 +137,7 @@ impl Isa {
         match self {
             Isa::Avx512 => "avx512",
             Isa::Avx2 => "avx2",
+            Isa::Neon => "neon",
             Isa::Portable => "portable",
         }
     }
@@ -151,6 +161,7 @@ mod tests {
     fn the_override_caps_and_anything_else_does_not() {
         assert_eq!(cap(Some("portable")), Isa::Portable);
         assert_eq!(cap(Some("avx2")), Isa::Avx2);
+        assert_eq!(cap(Some("neon")), Isa::Neon);
         assert_eq!(cap(Some("avx512")), Isa::Avx512);
         assert_eq!(cap(Some("AVX2")), Isa::Avx512);
         assert_eq!(cap(None), Isa::Avx512);

@@ -1,11 +1,13 @@
 //! Vectors of 16 rows, with one fixed meaning per operation.
 //!
 //! [`Arith`] is implemented for `f32` (one row), for [`Portable`] (16 plain `f32` lanes), and on
-//! x86-64 for [`Avx512`] and [`Avx2`]. Every implementation performs exactly the same IEEE
+//! x86-64 for [`Avx512`] and [`Avx2`], on aarch64 for `Neon`. Every implementation performs exactly the same IEEE
 //! operation on each lane — fused multiply-adds as fused, the same selects, the same integer bit
 //! tricks — so the kernels built on them give the same bits on every CPU; only the speed differs.
 //! Data movement ([`Lanes::gather`], [`Lanes::gather8`]) may use any instructions: it is exact.
 
+#[cfg(target_arch = "aarch64")]
+pub use super::neon::Neon;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
@@ -147,10 +149,10 @@ pub trait Lanes: Arith {
 }
 
 /// Bits from which those of `a` are subtracted for a guess of `1/a`.
-const RECIP_MAGIC: i32 = 0x7EF3_11C3;
+pub(super) const RECIP_MAGIC: i32 = 0x7EF3_11C3;
 
 /// Bits from which a rounded value `n + 1.5·2²³` is subtracted for the biased exponent of `2⁻ⁿ`.
-const POW2_NEG_BIAS: i32 = 127 + 0x4B40_0000;
+pub(super) const POW2_NEG_BIAS: i32 = 127 + 0x4B40_0000;
 
 impl Arith for f32 {
     #[inline(always)]
@@ -594,6 +596,11 @@ macro_rules! multiversion {
                     lanes::Isa::Avx2 if isa.runs_mlp() => return unsafe { avx2($($p),*) },
                     _ => {}
                 }
+            }
+            // NEON is in every aarch64 CPU: no check, no `target_feature` function.
+            #[cfg(target_arch = "aarch64")]
+            if isa == lanes::Isa::Neon && isa.runs_mlp() {
+                return $body::<lanes::Neon>($($p),*);
             }
             let _ = isa;
             $body::<lanes::Portable>($($p),*)

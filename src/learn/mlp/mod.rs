@@ -23,6 +23,8 @@
 
 mod kernels;
 mod lanes;
+#[cfg(target_arch = "aarch64")]
+mod neon;
 mod net;
 mod optim;
 mod peak;

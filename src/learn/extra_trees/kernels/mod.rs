@@ -17,7 +17,8 @@ use crate::learn::cpu::{self, Isa};
 pub(super) struct Marks {
     /// Each row's destination, relative to the node's start (portable kernels).
     pub(super) pos: Vec<u32>,
-    /// Which rows go left, 16 per mask (AVX-512 kernels).
+    /// Which rows go left, 16 per mask (AVX-512 kernels; unread on other targets).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     pub(super) masks: Vec<u16>,
 }
 
@@ -150,6 +151,7 @@ impl Build {
             Isa::Avx2 => Avx2::detect().map(Build::Avx2),
             #[cfg(not(target_arch = "x86_64"))]
             Isa::Avx512 | Isa::Avx2 => None,
+            Isa::Neon => None,
             Isa::Portable => Some(Build::Portable),
         }
     }
