@@ -470,3 +470,55 @@ fn committed_runs_draw_losses_plots_gifs_log_axes_and_clear_parallel_coordinates
     browser.screenshot(&shots.join("bicycle-parallel.png"));
 }
 
+#[test]
+fn two_runs_ticked_in_the_runs_table_open_side_by_side() {
+    let top = empty_dir("dashboard-browser", "pair");
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let server = Server::start(&[Path::new("results/searches")]);
+    browser.open(&server.url);
+    browser.wait_for("document.querySelectorAll('table[data-table=runs] input.pick').length > 2", &json!(true), 30);
+    assert_eq!(browser.eval("document.getElementById('compare-runs').disabled"), json!(true));
+    for name in ["cartpole", "cartpole-random"] {
+        let tick = format!(
+            "[...document.querySelectorAll('table[data-table=runs] tbody tr')] \
+             .find((r) => r.cells[0].textContent.endsWith('/{name}')).querySelector('input.pick').click()"
+        );
+        browser.eval(&tick);
+    }
+    assert_eq!(browser.eval("document.getElementById('compare-runs').disabled"), json!(false));
+    browser.eval("document.getElementById('compare-runs').click()");
+    browser.wait_for(
+        "location.pathname + location.search",
+        &json!("/compare-runs?a=0%2Fcartpole&b=0%2Fcartpole-random"),
+        30,
+    );
+
+    // Both runs' best-so-far curves, a point per generation each, in two colours with a legend.
+    browser.wait_for("document.querySelectorAll('#pair path.curve').length", &json!(2), 30);
+    for (i, name) in ["cartpole", "cartpole-random"].iter().enumerate() {
+        let n = common::read(repo().join("results/searches").join(name).join("generations.jsonl")).lines().count();
+        assert_eq!(browser.eval(&format!("document.querySelectorAll('#pair circle.run-{i}').length")), json!(n));
+    }
+    // Best-so-far values differ in the first decimal: the ticks still read apart.
+    let ticks = texts(&mut browser, "#pair .yticks text");
+    let distinct: std::collections::BTreeSet<&String> = ticks.iter().collect();
+    assert!(ticks.len() > 2 && distinct.len() == ticks.len(), "{ticks:?}");
+    let colours =
+        browser.eval("[...document.querySelectorAll('#pair path.curve')].map((p) => p.getAttribute('stroke'))");
+    assert_ne!(colours[0], colours[1]);
+    let legend = texts(&mut browser, "#pair svg > text");
+    for want in ["results/searches/cartpole", "results/searches/cartpole-random"] {
+        assert!(legend.iter().any(|t| t == want), "{want} not in the legend: {legend:?}");
+    }
+    // The table side by side, and the page keeps polling like every other.
+    let rows = texts(&mut browser, "table[data-table=pair] tbody tr td:first-child");
+    assert!(rows.iter().any(|r| r == "units evaluated") && rows.iter().any(|r| r == "best setting"), "{rows:?}");
+    browser.wait_for("window.dashboardDrawn.count > 0", &json!(true), 30);
+    browser.screenshot(&screenshots().join("pair.png"));
+}

@@ -42,7 +42,9 @@ pub fn table(roots: &Roots) -> (Table, Vec<String>) {
     (t, notes)
 }
 
-fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
+/// A run's row of the runs table, without its times: run, kind, env, state, generation, best
+/// fitness, settings, progress, ETA.
+pub(super) fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
     let info: Value = run.json("run.json").unwrap_or_default();
     let env = info["env"].as_str().map(String::from);
     let cells = |state: String, generation: String, best: String, settings: String, progress: String, eta: String| {

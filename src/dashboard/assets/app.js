@@ -346,6 +346,26 @@ function curves(section, c) {
   });
 }
 
+// Two runs side by side: each search's best fitness so far per generation, one colour a run.
+function pairChart(box, c) {
+  const runs = c.runs.filter((r) => r.generations.length);
+  if (!runs.length) { box.textContent = "neither run is a search with generations: no fitness to compare"; return; }
+  const colours = ["#4682b4", "#c60"];
+  const ys = runs.flatMap((r) => r.generations.map((g) => g.best_so_far));
+  const s = scale(box.id, "y", ys, "best fitness so far", false), y = s.f;
+  const f = frame(box, "Best fitness so far per generation", extent(runs.flatMap((r) => r.generations.map((g) => g.g))),
+    extent(ys.map(y)), "generation", s.label, "whole", 220, s.kind);
+  runs.forEach((r) => {
+    const col = colours[r.index % 2], pts = r.generations.map((g) => [g.g, y(g.best_so_far)]);
+    const d = pts.filter((p) => p[1] !== null && isFinite(p[1])).map((p, i) => (i ? "L" : "M") + f.sx(p[0]) + "," + f.sy(p[1])).join("");
+    if (d) el("path", { class: "curve", "data-run": r.index, d: d, fill: "none", stroke: col, "stroke-width": 2 }, f.svg);
+    pts.forEach((p) => {
+      if (p[1] !== null && isFinite(p[1])) el("circle", { class: "run-" + r.index, cx: f.sx(p[0]), cy: f.sy(p[1]), r: 3, fill: col }, f.svg);
+    });
+  });
+  legend(f, runs.map((r) => [r.label, colours[r.index % 2]]));
+  toggles(box, [s]);
+}
 
 // How often the page redrew from polled data and when it first did (ms after navigation start):
 // the browser test reads these to see live updates arrive without a reload.
@@ -376,6 +396,7 @@ function render(charts) {
   if (charts.importance && get("importance")) importanceChart(get("importance"), charts);
   if (charts.losses && get("losses")) lossChart(get("losses"), charts);
   if (charts.series && get("curves")) curves(get("curves"), charts);
+  if (charts.runs && get("pair")) pairChart(get("pair"), charts);
 }
 
 // Sorting (click a heading; again to reverse) and filtering (the box above each table), kept
@@ -424,6 +445,50 @@ function enhance(table) {
   });
 }
 document.querySelectorAll("table[data-table]").forEach(enhance);
+
+// The runs table: a box to tick in each run's row; with two ticked, the button opens them side by
+// side. Ticks are kept by run across live refreshes (the rows are rebuilt then).
+const picked = [];
+function runOf(a) {
+  // `/run/R/PATH` (PATH percent-encoded) → `R/PATH` as the query's value.
+  return decodeURIComponent(a.getAttribute("href").replace(/^\/run\//, ""));
+}
+function pickers(table) {
+  if (table.dataset.table !== "runs") return;
+  Array.from(table.tBodies[0].rows).forEach((tr) => {
+    const a = tr.cells[0] && tr.cells[0].querySelector("a");
+    if (!a || tr.cells[0].querySelector("input")) return;
+    const run = runOf(a), box = document.createElement("input");
+    box.type = "checkbox";
+    box.className = "pick";
+    box.title = "tick two runs to see them side by side";
+    box.checked = picked.includes(run);
+    box.addEventListener("change", () => {
+      const i = picked.indexOf(run);
+      if (box.checked && i < 0) picked.push(run);
+      if (!box.checked && i >= 0) picked.splice(i, 1);
+      // Two at most: a third tick replaces the oldest.
+      while (picked.length > 2) picked.shift();
+      table.querySelectorAll("input.pick").forEach((b) => { b.checked = picked.includes(runOf(b.parentNode.querySelector("a"))); });
+      pickButton();
+    });
+    tr.cells[0].insertBefore(box, a);
+  });
+  pickButton();
+}
+function pickButton() {
+  const b = document.getElementById("compare-runs");
+  if (!b) return;
+  b.disabled = picked.length !== 2;
+  b.textContent = picked.length === 2 ? "Side by side: " + picked[0] + " and " + picked[1] : "Tick two runs to see them side by side";
+}
+const pickerButton = document.getElementById("compare-runs");
+if (pickerButton) {
+  pickerButton.addEventListener("click", () => {
+    if (picked.length === 2) location.href = "/compare-runs?a=" + encodeURIComponent(picked[0]) + "&b=" + encodeURIComponent(picked[1]);
+  });
+}
+document.querySelectorAll("table[data-table]").forEach(pickers);
 
 // A table the page did not have when it loaded (validation, once it runs): added at the end.
 function addTable(t) {
@@ -481,6 +546,7 @@ function refill(t) {
   table.replaceChild(body, table.tBodies[0]);
   const count = table.closest("section").querySelector(".csv");
   if (count && count.lastChild) count.lastChild.textContent = " · " + t.rows.length + " rows";
+  pickers(table);
   applyView(table);
 }
 
