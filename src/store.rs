@@ -265,7 +265,12 @@ pub fn create_dir(path: &Path) -> Result<()> {
 
 /// The current UTC time as `YYYYMMDD-HHMMSS` (for run ids) and RFC 3339 (for records).
 pub fn now_utc() -> (String, String) {
-    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    utc(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs()))
+}
+
+/// Seconds since 1970 as `YYYYMMDD-HHMMSS` and as RFC 3339 UTC: the one date formatting every
+/// record and page uses (the dashboard shows file times with it too).
+pub fn utc(secs: u64) -> (String, String) {
     let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
     // Civil-from-days (Howard Hinnant's algorithm), proleptic Gregorian.
     let z = days + 719_468;
@@ -395,6 +400,13 @@ pub fn json_hash<T: serde::Serialize>(value: &T) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn utc_matches_known_dates() {
+        assert_eq!(utc(0).1, "1970-01-01T00:00:00Z");
+        assert_eq!(utc(951_782_400).1, "2000-02-29T00:00:00Z");
+        assert_eq!(utc(1_796_272_000 + 3_723), ("20261203-052843".into(), "2026-12-03T05:28:43Z".into()));
+    }
 
     #[test]
     fn atomic_write_replaces_whole_file_or_nothing() {

@@ -763,3 +763,49 @@ fn csv_exports_the_stored_numbers_and_pages_carry_the_new_tables() {
     let html = s.ok("/run/0/roll");
     assert!(html.contains("src=\"/file/0/roll/episode-0.png\"") && html.contains("src=\"/file/0/roll/episode-0.gif\""));
 }
+
+#[test]
+fn two_runs_show_side_by_side_and_their_paths_are_checked_like_run_pages() {
+    let s = serve(&[committed()]);
+    // Two searches: a GA search against a random one, each curve a generation per point.
+    let page = s.json("/compare-runs?a=0/cartpole&b=0/cartpole-random&json=1");
+    let runs = page["charts"]["runs"].as_array().unwrap();
+    for (run, name) in runs.iter().zip(["cartpole", "cartpole-random"]) {
+        let lines = common::read(committed().join(name).join("generations.jsonl")).lines().count();
+        assert_eq!(run["generations"].as_array().unwrap().len(), lines, "{name}");
+        assert!(run["label"].as_str().unwrap().ends_with(&format!("/{name}")), "{run}");
+    }
+    let t = table(&page, "pair");
+    let row = |name: &str| {
+        t["rows"].as_array().unwrap().iter().find(|r| r[0]["text"] == name).unwrap_or_else(|| panic!("{name}: {t}"))
+    };
+    assert_eq!(row("kind")[1]["text"], "search");
+    assert_eq!(row("env")[2]["text"], "cartpole");
+    // The units evaluated are the unit files on disk; the best fitness is state.json's.
+    let units = std::fs::read_dir(committed().join("cartpole-random/units")).unwrap().count();
+    assert_eq!(row("units evaluated")[2]["text"], units.to_string());
+    let st = common::json(committed().join("cartpole-random/state.json"));
+    assert_eq!(row("best fitness")[2]["value"], st["best_fitness"].as_f64().unwrap().to_string());
+    assert!(row("validation (tuned setting, mean ± 95 %)")[1]["text"].as_str().unwrap().contains(" ± "));
+    assert!(row("best setting")[1]["text"].as_str().unwrap().contains("patience"), "{t}");
+    let html = s.ok("/compare-runs?a=0/cartpole&b=0/cartpole-random");
+    assert!(html.contains("id=\"pair\"") && html.contains("href=\"/run/0/cartpole-random\""), "{}", short(&html));
+    assert_eq!(s.get("/compare-runs?a=0/cartpole&b=0/cartpole-random&csv=pair").status, 200);
+
+    // A search beside a comparison: what both have, no search rows, no curve for the comparison.
+    let mixed = s.json("/compare-runs?a=0/bicycle&b=0/bicycle-compare-mlp-iterations&json=1");
+    let names: Vec<&str> =
+        table(&mixed, "pair")["rows"].as_array().unwrap().iter().map(|r| r[0]["text"].as_str().unwrap()).collect();
+    assert_eq!(names, ["run", "kind", "env", "state"]);
+    assert_eq!(mixed["charts"]["runs"][1]["generations"], serde_json::json!([]));
+    assert_eq!(mixed["charts"]["runs"][0]["generations"].as_array().unwrap().len(), 20);
+
+    // Paths as run pages check them; a missing run is named as missing, not an error page.
+    assert_eq!(s.get("/compare-runs?a=0/cartpole").status, 400);
+    assert_eq!(s.get("/compare-runs?a=0/cartpole&b=0/..").status, 403);
+    assert_eq!(s.get("/compare-runs?a=0/%2e%2e/searches/cartpole&b=0/cartpole").status, 403);
+    assert_eq!(s.get("/compare-runs?a=0/cartpole&b=0/cartpole/units").status, 404);
+    assert_eq!(s.get("/compare-runs?a=0/cartpole&b=3/cartpole").status, 404);
+    assert_eq!(s.get("/compare-runs?a=0/cartpole&b=x").status, 404);
+    assert_eq!(s.get("/compare-runs?a=0/%2Fetc&b=0/cartpole").status, 404);
+}

@@ -170,9 +170,16 @@ struct Server {
 }
 
 impl Server {
+    /// Serves `roots`; relative ones are the repository's (and are shown as given, relative).
     fn start(roots: &[&Path]) -> Server {
-        let mut child =
-            bin().arg("dashboard").args(roots).args(["--port", "0"]).stdout(Stdio::piped()).spawn().unwrap();
+        let mut child = bin()
+            .current_dir(repo())
+            .arg("dashboard")
+            .args(roots)
+            .args(["--port", "0"])
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap();
         let mut line = String::new();
         BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
         let url = line.trim().strip_prefix("bfqi-ga dashboard: ").unwrap_or_else(|| panic!("{line}")).to_string();
@@ -185,6 +192,11 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// The repository's top folder.
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
 fn screenshots() -> PathBuf {
@@ -266,11 +278,13 @@ fn the_committed_bicycle_search_draws_every_setting() {
             return;
         }
     };
-    let searches = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches");
-    let server = Server::start(&[&searches]);
-    let n = settings(&searches.join("bicycle")).len();
+    // Served by its relative path, as a user would: the page (and the README's screenshot of it)
+    // shows `results/searches/bicycle`, not where this checkout happens to be.
+    let server = Server::start(&[Path::new("results/searches")]);
+    let n = settings(&repo().join("results/searches/bicycle")).len();
     browser.open(&format!("{}run/0/bicycle", server.url));
     browser.wait_for("document.querySelectorAll('#explorer .pt').length", &json!(n), 30);
+    assert_eq!(browser.eval("document.querySelector('h1').textContent"), json!("search results/searches/bicycle"));
     // From navigation start to the charts drawn from the first poll: the first useful paint.
     let ms = browser.eval("window.dashboardDrawn.firstMs").as_f64().unwrap();
     println!("bicycle search ({n} settings): charts drawn {ms:.0} ms after navigation start");
@@ -357,4 +371,156 @@ fn one_generation_is_drawn_tables_sort_and_filter_and_new_tables_arrive_live() {
         json!("none")
     );
     browser.screenshot(&screenshots().join("runs.png"));
+}
+
+/// The texts of the elements `selector` matches.
+fn texts(browser: &mut Browser, selector: &str) -> Vec<String> {
+    let v = browser.eval(&format!("[...document.querySelectorAll({selector:?})].map((e) => e.textContent)"));
+    serde_json::from_value(v).unwrap()
+}
+
+#[test]
+fn committed_runs_draw_losses_plots_gifs_log_axes_and_clear_parallel_coordinates() {
+    let top = empty_dir("dashboard-browser", "committed");
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let roots = ["results/searches", "results/rollouts", "results/thesis"].map(Path::new);
+    let server = Server::start(&roots);
+    let shots = screenshots();
+
+    // A setting's page: its losses drawn as paths and points, one point per network's training
+    // loss (all > 0 in these units, so the axis is log), not empty axes.
+    let st: Value = common::json(repo().join("results/searches/bicycle/state.json"));
+    let best: bfqi_ga::ga::chromosome::Decoded = serde_json::from_value(st["best"].clone()).unwrap();
+    let id = bfqi_ga::ga::units::setting_id(&best);
+    let path = format!("/run/0/bicycle?setting={id}");
+    let page: Value = serde_json::from_str(&common::http_get(&server.url, &format!("{path}&json=1")).body).unwrap();
+    let losses = page["charts"]["losses"].as_array().unwrap();
+    let train = losses.iter().filter(|l| l["train"].as_f64().is_some_and(|v| v > 0.0)).count();
+    assert!(train > 0, "the best setting's units record losses");
+    browser.open(&format!("{}{}", server.url.trim_end_matches('/'), path));
+    browser.wait_for("document.querySelectorAll('#losses circle.loss').length", &json!(train), 30);
+    assert!(browser.eval("document.querySelectorAll('#losses path').length").as_u64().unwrap() > 0);
+    assert!(texts(&mut browser, "#losses .yticks text").iter().all(|t| t.starts_with("1e")));
+    browser.screenshot(&shots.join("setting-losses.png"));
+
+    // A rollout's page: its state/action plot and its GIF, both decoded by the browser.
+    browser.open(&format!("{}run/1/cartpole-ga-optimum", server.url));
+    let loaded =
+        "[...document.images].filter((i) => i.complete && i.naturalWidth > 0).map((i) => i.getAttribute('src'))";
+    browser.wait_for(&format!("{loaded}.length"), &json!(2), 30);
+    let srcs = browser.eval(loaded);
+    for want in ["/file/1/cartpole-ga-optimum/episode-0.png", "/file/1/cartpole-ga-optimum/episode-0.gif"] {
+        assert!(srcs.as_array().unwrap().contains(&json!(want)), "{want} not shown: {srcs}");
+    }
+    browser.wait_for("document.querySelectorAll('table[data-table=episodes] tbody tr').length", &json!(1), 30);
+    browser.screenshot(&shots.join("rollout.png"));
+
+    // A sample-size comparison: episodes on a log axis (ticks at powers of ten), and its toggle
+    // switches that axis to linear and back.
+    browser.open(&format!("{}run/2/cartpole-et-samples", server.url));
+    browser.wait_for("document.querySelectorAll('#curve-0 .xticks text').length > 1", &json!(true), 30);
+    let log = texts(&mut browser, "#curve-0 .xticks text");
+    assert!(log.iter().all(|t| t.starts_with("1e")), "{log:?}");
+    let label = "[...document.querySelectorAll('#curve-0 svg > text')].some((t) => t.textContent === 'episodes (log)')";
+    assert_eq!(browser.eval(label), json!(true));
+    let button = "document.querySelector('#curve-0 button[data-axis=\"curve-0:x\"]')";
+    assert_eq!(browser.eval(&format!("{button}.textContent")), json!("x: log"));
+    browser.eval(&format!("{button}.click()"));
+    let linear = texts(&mut browser, "#curve-0 .xticks text");
+    assert!(linear.len() > 1 && linear.iter().all(|t| t.parse::<f64>().is_ok()), "{linear:?}");
+    assert_eq!(browser.eval(&format!("{button}.textContent")), json!("x: linear"));
+    browser.screenshot(&shots.join("samples-linear.png"));
+    // The choice survives the page's live redraws (a poll with changed data redraws all charts).
+    browser.eval("render(lastCharts)");
+    assert_eq!(texts(&mut browser, "#curve-0 .xticks text"), linear);
+    browser.eval(&format!("{button}.click()"));
+    assert_eq!(texts(&mut browser, "#curve-0 .xticks text"), log);
+
+    // Log is offered only where every value is > 0: cart-pole's fitness (> 0) has a toggle,
+    // the bicycle's (< 0) none; patience (≥ 1) has one on both.
+    for (run, fitness_toggles) in [("cartpole", 1), ("bicycle", 0)] {
+        browser.open(&format!("{}run/0/{run}", server.url));
+        browser.wait_for("document.querySelectorAll('#explorer .pt').length > 0", &json!(true), 30);
+        assert_eq!(browser.eval("document.querySelectorAll('#fitness button.scale').length"), json!(fitness_toggles));
+        let patience = "document.querySelector('#gene-patience button[data-axis=\"gene-patience:x\"]')";
+        assert_eq!(browser.eval(&format!("{patience}.textContent")), json!("x: linear"), "{run}");
+    }
+    browser.eval("document.querySelector('#gene-patience button[data-axis=\"gene-patience:x\"]').click()");
+    let ticks = texts(&mut browser, "#gene-patience .xticks text");
+    assert!(ticks.len() > 1 && ticks.iter().all(|t| t.starts_with("1e")), "{ticks:?}");
+
+    // Parallel coordinates: no 0–1 axis of the frame's own; every gene axis its own ticks; no
+    // label reaching into the colour bar.
+    assert_eq!(browser.eval("document.querySelectorAll('#parallel .yticks text').length"), json!(0));
+    let per_axis =
+        browser.eval("[...document.querySelectorAll('#parallel .pc-ticks')].map((g) => g.children.length / 2)");
+    assert_eq!(per_axis.as_array().unwrap().len(), 4, "{per_axis}");
+    assert!(per_axis.as_array().unwrap().iter().all(|n| n.as_f64().unwrap() >= 2.0), "{per_axis}");
+    assert_eq!(texts(&mut browser, "#parallel .pc-ticks")[0], "sigmoidtanhrelu");
+    let clear = "(() => { const s = document.querySelector('#parallel svg'); \
+        const bar = Math.min(...[...s.querySelectorAll('.colourbar rect')].map((r) => r.getBBox().x)); \
+        const over = [...s.querySelectorAll('text')].filter((t) => !t.closest('.colourbar')) \
+          .filter((t) => { const b = t.getBBox(); return b.x + b.width > bar; }); \
+        return over.map((t) => t.textContent); })()";
+    assert_eq!(browser.eval(clear), json!([]));
+    browser.screenshot(&shots.join("bicycle-parallel.png"));
+}
+
+#[test]
+fn two_runs_ticked_in_the_runs_table_open_side_by_side() {
+    let top = empty_dir("dashboard-browser", "pair");
+    let mut browser = match Browser::start(&top.join("profile")) {
+        Ok(b) => b,
+        Err(why) => {
+            println!("skipped: {why}");
+            return;
+        }
+    };
+    let server = Server::start(&[Path::new("results/searches")]);
+    browser.open(&server.url);
+    browser.wait_for("document.querySelectorAll('table[data-table=runs] input.pick').length > 2", &json!(true), 30);
+    assert_eq!(browser.eval("document.getElementById('compare-runs').disabled"), json!(true));
+    for name in ["cartpole", "cartpole-random"] {
+        let tick = format!(
+            "[...document.querySelectorAll('table[data-table=runs] tbody tr')] \
+             .find((r) => r.cells[0].textContent.endsWith('/{name}')).querySelector('input.pick').click()"
+        );
+        browser.eval(&tick);
+    }
+    assert_eq!(browser.eval("document.getElementById('compare-runs').disabled"), json!(false));
+    browser.eval("document.getElementById('compare-runs').click()");
+    browser.wait_for(
+        "location.pathname + location.search",
+        &json!("/compare-runs?a=0%2Fcartpole&b=0%2Fcartpole-random"),
+        30,
+    );
+
+    // Both runs' best-so-far curves, a point per generation each, in two colours with a legend.
+    browser.wait_for("document.querySelectorAll('#pair path.curve').length", &json!(2), 30);
+    for (i, name) in ["cartpole", "cartpole-random"].iter().enumerate() {
+        let n = common::read(repo().join("results/searches").join(name).join("generations.jsonl")).lines().count();
+        assert_eq!(browser.eval(&format!("document.querySelectorAll('#pair circle.run-{i}').length")), json!(n));
+    }
+    // Best-so-far values differ in the first decimal: the ticks still read apart.
+    let ticks = texts(&mut browser, "#pair .yticks text");
+    let distinct: std::collections::BTreeSet<&String> = ticks.iter().collect();
+    assert!(ticks.len() > 2 && distinct.len() == ticks.len(), "{ticks:?}");
+    let colours =
+        browser.eval("[...document.querySelectorAll('#pair path.curve')].map((p) => p.getAttribute('stroke'))");
+    assert_ne!(colours[0], colours[1]);
+    let legend = texts(&mut browser, "#pair svg > text");
+    for want in ["results/searches/cartpole", "results/searches/cartpole-random"] {
+        assert!(legend.iter().any(|t| t == want), "{want} not in the legend: {legend:?}");
+    }
+    // The table side by side, and the page keeps polling like every other.
+    let rows = texts(&mut browser, "table[data-table=pair] tbody tr td:first-child");
+    assert!(rows.iter().any(|r| r == "units evaluated") && rows.iter().any(|r| r == "best setting"), "{rows:?}");
+    browser.wait_for("window.dashboardDrawn.count > 0", &json!(true), 30);
+    browser.screenshot(&screenshots().join("pair.png"));
 }

@@ -3,6 +3,7 @@
 //! - [`discover`]: the served roots, the runs under them, and path resolution (traversal refused);
 //! - [`search`] and [`runs`]: what each page reads, from the runs' small files (a setting's page
 //!   reads that setting's units only);
+//! - [`pair`]: two runs side by side (`/compare-runs`);
 //! - [`table`]: tables as escaped HTML, CSV and JSON; [`html`]: escaping and the page layout;
 //! - [`routes`]: requests to responses; [`server`]: the HTTP/1.1 server over `std::net` (GET
 //!   only, one request a connection, every allocation a request can cause bounded).
@@ -12,6 +13,7 @@
 
 pub mod discover;
 pub mod html;
+pub mod pair;
 pub mod routes;
 pub mod runs;
 pub mod search;

@@ -2,11 +2,12 @@
 //! through [`Roots`], which refuses what leaves the served directories.
 //!
 //! - `/` the runs; `/run/R/PATH` a run's page (`?setting=ID` a search's setting);
+//!   `/compare-runs?a=R/PATH&b=R/PATH` two runs side by side;
 //! - any page with `?csv=TABLE` gives that table as CSV, with `?json=1` its tables and chart data
 //!   (what the script polls for live updates);
 //! - `/file/R/PATH` a PNG or GIF inside a run; `/assets/…` the embedded script and style sheet.
 
-use super::discover::{Kind, Refused, Roots};
+use super::discover::{Kind, Refused, Roots, Run};
 use super::html::{self, decode, escape};
 use super::table::Table;
 use serde_json::{Value, json};
@@ -67,10 +68,16 @@ pub fn handle(roots: &Roots, method: &str, url: &str) -> Reply {
         Page {
             title: "Runs".into(),
             crumbs: vec![],
-            body: String::new(),
+            // The script enables it once two runs are ticked.
+            body: "<button id=\"compare-runs\" disabled>Tick two runs to see them side by side</button>".into(),
             tables: vec![runs],
             charts: Value::Null,
             notes,
+        }
+    } else if path == "/compare-runs" {
+        match pair_page(roots, param("a"), param("b")) {
+            Ok(p) => p,
+            Err(r) => return r,
         }
     } else if let Some(rest) = path.strip_prefix("/file/") {
         return file(roots, rest);
@@ -103,12 +110,33 @@ fn split_root(rest: &str) -> Option<(usize, &str)> {
     Some((r.parse().ok()?, rel.trim_end_matches('/')))
 }
 
-fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Reply> {
+/// The run `R/PATH` names (as `/run/` and `/compare-runs` take it): `..` and `.` refused, and
+/// anything that is not a run directory inside a served folder.
+fn find_run(roots: &Roots, rest: &str) -> Result<Run, Reply> {
     let (root, rel) = split_root(rest).ok_or_else(|| Reply::error(404, "no such run"))?;
     if rel.split('/').any(|p| p == ".." || p == ".") {
         return Err(Reply::error(403, "outside the served directories"));
     }
-    let run = roots.run(root, rel).ok_or_else(|| Reply::error(404, "no such run"))?;
+    roots.run(root, rel).ok_or_else(|| Reply::error(404, "no such run"))
+}
+
+/// Two runs side by side.
+fn pair_page(roots: &Roots, a: Option<&str>, b: Option<&str>) -> Result<Page, Reply> {
+    let (Some(a), Some(b)) = (a, b) else {
+        return Err(Reply::error(400, "two runs needed: /compare-runs?a=R/PATH&b=R/PATH"));
+    };
+    let (a, b) = (find_run(roots, a)?, find_run(roots, b)?);
+    let crumbs = vec![(a.label(roots), a.url()), (b.label(roots), b.url())];
+    let title = format!("{} and {} side by side", a.label(roots), b.label(roots));
+    let (tables, charts) = super::pair::page(roots, &a, &b);
+    let notes =
+        [&a, &b].iter().flat_map(|r| r.notes().into_iter().map(|n| format!("{}: {n}", r.label(roots)))).collect();
+    let body = "<section class=\"charts\"><div class=\"chart wide\" id=\"pair\"></div></section>".into();
+    Ok(Page { title, crumbs, body, tables, charts, notes })
+}
+
+fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Reply> {
+    let run = find_run(roots, rest)?;
     let label = run.label(roots);
     let crumbs = vec![(label.clone(), run.url())];
     let mut body = String::new();

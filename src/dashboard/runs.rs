@@ -35,14 +35,16 @@ pub fn table(roots: &Roots) -> (Table, Vec<String>) {
     for run in roots.runs() {
         let mut r = row(&run, roots);
         r.push(Cell::text(run.json::<Value>("run.json").map_or("—".into(), |i| plain(&i["created"]))));
-        r.push(Cell::text(updated(&run).map_or("—".into(), utc)));
+        r.push(Cell::text(updated(&run).map_or("—".into(), |s| crate::store::utc(s).1)));
         t.push(r);
         notes.extend(run.notes().into_iter().map(|n| format!("{}: {n}", run.label(roots))));
     }
     (t, notes)
 }
 
-fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
+/// A run's row of the runs table, without its times: run, kind, env, state, generation, best
+/// fitness, settings, progress, ETA.
+pub(super) fn row(run: &Run, roots: &Roots) -> Vec<Cell> {
     let info: Value = run.json("run.json").unwrap_or_default();
     let env = info["env"].as_str().map(String::from);
     let cells = |state: String, generation: String, best: String, settings: String, progress: String, eta: String| {
@@ -248,30 +250,4 @@ fn updated(run: &Run) -> Option<u64> {
         .duration_since(std::time::UNIX_EPOCH)
         .ok()
         .map(|d| d.as_secs())
-}
-
-/// Seconds since 1970 as RFC 3339 UTC (the form the run records use).
-fn utc(secs: u64) -> String {
-    let (days, rem) = ((secs / 86_400) as i64, secs % 86_400);
-    // Civil-from-days (Howard Hinnant's algorithm), as store::now_utc.
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!("{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z", rem / 3600, rem % 3600 / 60, rem % 60)
-}
-
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn utc_matches_known_dates() {
-        assert_eq!(super::utc(0), "1970-01-01T00:00:00Z");
-        assert_eq!(super::utc(951_782_400), "2000-02-29T00:00:00Z");
-        assert_eq!(super::utc(1_796_272_000 + 3_723), "2026-12-03T05:28:43Z");
-    }
 }
