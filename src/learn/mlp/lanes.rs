@@ -6,8 +6,6 @@
 //! tricks — so the kernels built on them give the same bits on every CPU; only the speed differs.
 //! Data movement ([`Lanes::gather`], [`Lanes::gather8`]) may use any instructions: it is exact.
 
-#[cfg(target_arch = "aarch64")]
-pub use super::neon::Neon;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
@@ -600,7 +598,7 @@ macro_rules! multiversion {
             // NEON is in every aarch64 CPU: no check, no `target_feature` function.
             #[cfg(target_arch = "aarch64")]
             if isa == lanes::Isa::Neon && isa.runs_mlp() {
-                return $body::<lanes::Neon>($($p),*);
+                return $body::<$crate::learn::mlp::neon::Neon>($($p),*);
             }
             let _ = isa;
             $body::<lanes::Portable>($($p),*)
