@@ -205,6 +205,18 @@ fn screenshots() -> PathBuf {
     d
 }
 
+/// A browser with its profile under `top`, or `None` after saying why none could start (the test
+/// is then skipped).
+fn browser_or_skip(top: &Path) -> Option<Browser> {
+    match Browser::start(&top.join("profile")) {
+        Ok(b) => Some(b),
+        Err(why) => {
+            println!("skipped: {why}");
+            None
+        }
+    }
+}
+
 #[test]
 fn the_page_shows_every_setting_and_a_new_generation_without_a_reload() {
     let top = empty_dir("dashboard-browser", "live");
@@ -215,13 +227,7 @@ fn the_page_shows_every_setting_and_a_new_generation_without_a_reload() {
     // The same run under a name a browser would run as markup if it were not escaped.
     copy_dir(&run, &root.join("<img src=x onerror=window.pwned=1>"));
 
-    let mut browser = match Browser::start(&top.join("profile")) {
-        Ok(b) => b,
-        Err(why) => {
-            println!("skipped: {why}");
-            return;
-        }
-    };
+    let Some(mut browser) = browser_or_skip(&top) else { return };
     let server = Server::start(&[&root]);
     let shots = screenshots();
 
@@ -271,13 +277,7 @@ fn the_page_shows_every_setting_and_a_new_generation_without_a_reload() {
 #[test]
 fn the_committed_bicycle_search_draws_every_setting() {
     let top = empty_dir("dashboard-browser", "bicycle");
-    let mut browser = match Browser::start(&top.join("profile")) {
-        Ok(b) => b,
-        Err(why) => {
-            println!("skipped: {why}");
-            return;
-        }
-    };
+    let Some(mut browser) = browser_or_skip(&top) else { return };
     // Served by its relative path, as a user would: the page (and the README's screenshot of it)
     // shows `results/searches/bicycle`, not where this checkout happens to be.
     let server = Server::start(&[Path::new("results/searches")]);
@@ -309,13 +309,7 @@ fn one_generation_is_drawn_tables_sort_and_filter_and_new_tables_arrive_live() {
     let held = top.join("validation.json");
     std::fs::rename(run.join("validation.json"), &held).unwrap();
 
-    let mut browser = match Browser::start(&top.join("profile")) {
-        Ok(b) => b,
-        Err(why) => {
-            println!("skipped: {why}");
-            return;
-        }
-    };
+    let Some(mut browser) = browser_or_skip(&top) else { return };
     let server = Server::start(&[&root]);
     browser.open(&format!("{}run/0/run", server.url));
     let n = settings(&run).len();
@@ -382,13 +376,7 @@ fn texts(browser: &mut Browser, selector: &str) -> Vec<String> {
 #[test]
 fn committed_runs_draw_losses_plots_gifs_log_axes_and_clear_parallel_coordinates() {
     let top = empty_dir("dashboard-browser", "committed");
-    let mut browser = match Browser::start(&top.join("profile")) {
-        Ok(b) => b,
-        Err(why) => {
-            println!("skipped: {why}");
-            return;
-        }
-    };
+    let Some(mut browser) = browser_or_skip(&top) else { return };
     let roots = ["results/searches", "results/rollouts", "results/thesis"].map(Path::new);
     let server = Server::start(&roots);
     let shots = screenshots();
@@ -475,13 +463,7 @@ fn committed_runs_draw_losses_plots_gifs_log_axes_and_clear_parallel_coordinates
 #[test]
 fn two_runs_ticked_in_the_runs_table_open_side_by_side() {
     let top = empty_dir("dashboard-browser", "pair");
-    let mut browser = match Browser::start(&top.join("profile")) {
-        Ok(b) => b,
-        Err(why) => {
-            println!("skipped: {why}");
-            return;
-        }
-    };
+    let Some(mut browser) = browser_or_skip(&top) else { return };
     let server = Server::start(&[Path::new("results/searches")]);
     browser.open(&server.url);
     browser.wait_for("document.querySelectorAll('table[data-table=runs] input.pick').length > 2", &json!(true), 30);
