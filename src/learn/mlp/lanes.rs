@@ -171,15 +171,15 @@ impl Arith for f32 {
     }
     #[inline(always)]
     fn fma(self, b: f32, c: f32) -> f32 {
-        self.mul_add(b, c)
+        fused(self, b, c)
     }
     #[inline(always)]
     fn fms(self, b: f32, c: f32) -> f32 {
-        self.mul_add(b, -c)
+        fused(self, b, -c)
     }
     #[inline(always)]
     fn fnma(self, b: f32, c: f32) -> f32 {
-        (-self).mul_add(b, c)
+        fused(-self, b, c)
     }
     #[inline(always)]
     fn max(self, b: f32) -> f32 {
@@ -201,6 +201,17 @@ impl Arith for f32 {
     fn recip_guess(self) -> f32 {
         f32::from_bits(RECIP_MAGIC.wrapping_sub(self.to_bits() as i32) as u32)
     }
+}
+
+/// `a·b + c` rounded once: the instruction where the build targets one (aarch64, or x86-64 built
+/// with FMA), else exact software that vectorises (`f32::mul_add` would call the C library's
+/// `fmaf` once per lane).
+#[inline(always)]
+fn fused(a: f32, b: f32, c: f32) -> f32 {
+    #[cfg(all(target_arch = "x86_64", not(target_feature = "fma")))]
+    return super::softfma::fma(a, b, c);
+    #[cfg(not(all(target_arch = "x86_64", not(target_feature = "fma"))))]
+    return a.mul_add(b, c);
 }
 
 /// Sixteen lanes as plain `f32` operations: the reference the other implementations match, and

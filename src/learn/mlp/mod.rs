@@ -29,6 +29,8 @@ mod net;
 mod optim;
 mod peak;
 mod shuffle;
+#[cfg(any(test, all(target_arch = "x86_64", not(target_feature = "fma"))))]
+mod softfma;
 #[cfg(test)]
 mod tests;
 
