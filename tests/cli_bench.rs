@@ -72,3 +72,45 @@ fn bench_search_json_has_the_documented_fields() {
     assert!(p["search_s_elites_reused"].as_f64().unwrap() <= all);
     assert!(e["keras"].is_null(), "no --python, no reference");
 }
+
+#[test]
+fn bench_search_isa_all_times_every_level_against_its_own_peak() {
+    let dir = empty_dir("bench", "levels");
+    let mut spec: Value = json("searches/cartpole.json");
+    spec["search"]["episodes"] = 30.into();
+    let path = dir.join("tiny.json");
+    std::fs::write(&path, serde_json::to_string(&spec).unwrap()).unwrap();
+    let out = bin().args(["bench", "search", "--json", "--isa", "all", "--env"]).arg(&path).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let levels: Vec<&str> = v["levels"].as_array().unwrap().iter().map(|l| l.as_str().unwrap()).collect();
+    // Every CPU runs the portable level, last; the best level the CPU has comes first.
+    assert_eq!(levels.last(), Some(&"portable"), "{levels:?}");
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        assert!(levels.contains(&"avx2"), "{levels:?}");
+    }
+    let per_level = v["envs"][0]["levels"].as_array().unwrap();
+    assert_eq!(per_level.len(), levels.len());
+    for (l, name) in per_level.iter().zip(&levels) {
+        assert_eq!(l["level"], *name);
+        assert!(l["peak_gflops_per_core"].as_f64().unwrap() > 0.0);
+        let shapes = l["shapes"].as_array().unwrap();
+        let acts: Vec<&str> = shapes.iter().map(|s| s["activation"].as_str().unwrap()).collect();
+        assert_eq!(acts, ["sigmoid", "tanh", "relu"]);
+        for s in shapes {
+            // Each level's bound is computed from its own peak.
+            let peak = l["peak_gflops_per_core"].as_f64().unwrap();
+            let ms = s["ms_per_epoch"].as_f64().unwrap();
+            let pct = s["percent_of_peak"].as_f64().unwrap();
+            let flops = s["work"]["matmul_flops"].as_f64().unwrap() + s["work"]["activation_flops"].as_f64().unwrap();
+            assert!((pct - 100.0 * flops / (ms / 1e3) / 1e9 / peak).abs() < 1e-6 * pct.max(1.0), "{s}");
+        }
+    }
+
+    // A level this CPU does not run is refused, naming the flag and what it runs.
+    let out = bin().args(["bench", "search", "--isa", "portable,sse9", "--env"]).arg(&path).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("invalid --isa = sse9") && err.contains("portable"), "{err}");
+}

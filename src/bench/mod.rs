@@ -18,6 +18,7 @@ mod dashboard;
 mod fqi;
 mod gym;
 mod learners;
+mod levels;
 mod search;
 
 pub use dashboard::dashboard;

@@ -14,13 +14,13 @@
 //!   networks, early-stopped) trained by Keras on the same rows and settings, and the ratio.
 
 use super::PythonReference;
+use super::levels::{SHAPE_EPOCHS, kernel_level, parse_levels, shapes, side_by_side};
 use crate::error::{Error, Result};
 use crate::fqi::Fqi;
 use crate::ga::chromosome::{Decoded, decode};
 use crate::ga::operators::initial_population;
 use crate::ga::units::{Evaluator, activation_name, setting_id};
-use crate::learn::mlp::{Activation, EpochWork, MlpParams, Shape, fma_peak_gflops, kernel_isa, split_rows};
-use crate::learn::{Learner, Rows};
+use crate::learn::mlp::{Activation, EpochWork, Shape, fma_peak_gflops, kernel_isa, split_rows};
 use crate::progress::human;
 use crate::spec::Spec;
 use crate::tuned::TunedConfig;
@@ -40,32 +40,15 @@ pub struct SearchBench {
     pub cap_seconds: f64,
     /// Print JSON instead of text.
     pub json: bool,
+    /// `all` or level names (`avx2,avx512`): time the network shapes at each of those kernel
+    /// levels side by side, each against its own peak and bound, instead of the units.
+    pub isa: Option<String>,
 }
 
 /// The fast and slow settings timed besides the thesis optimum: their genes, under the default
 /// gene ranges (activation, a_δ, b_δ, a_p, b_p).
 const FAST: [i64; 5] = [2, 99, 2, 10, 0];
 const SLOW: [i64; 5] = [0, 10, 8, 99, 2];
-
-/// Epochs timed per activation for the shape figures (early stopping off).
-const SHAPE_EPOCHS: usize = 30;
-
-#[derive(Debug, Serialize)]
-struct ShapeFigures {
-    activation: &'static str,
-    /// `[inputs, hidden…, 1]`.
-    widths: Vec<usize>,
-    train_rows: usize,
-    val_rows: usize,
-    ms_per_epoch: f64,
-    work: EpochWork,
-    gflops: f64,
-    percent_of_peak: f64,
-    /// The multiply-adds alone (the activations left out of the count, not of the time).
-    percent_of_peak_matmul: f64,
-    /// The epoch at one vector operation per slot (`EpochWork::bound_seconds`).
-    bound_ms_per_epoch: f64,
-}
 
 #[derive(Debug, Clone, Serialize)]
 struct UnitFigures {
@@ -195,50 +178,6 @@ fn time_unit(
     ))
 }
 
-/// Epoch time of the search's network shape with each activation, on dataset 0's first model.
-fn shapes(ev: &Evaluator, peak: f64) -> Result<Vec<ShapeFigures>> {
-    let x = ev.dataset(0)?;
-    let enc = &x.1;
-    let (rows, idx) = enc.model_rows(0);
-    let y: Vec<f64> = idx.iter().map(|&i| x.0.reward[i]).collect();
-    let net = &ev.spec().search.network;
-    let rows = Rows::new(rows, enc.n_inputs())?;
-    let (t, v) = split_rows(rows.n_rows(), net.validation_fraction);
-    let mut out = Vec::new();
-    for act in [Activation::Sigmoid, Activation::Tanh, Activation::Relu] {
-        let p = MlpParams {
-            activation: act,
-            max_epochs: SHAPE_EPOCHS,
-            delta_min: 0.0,
-            patience: usize::MAX / 2,
-            ..net.clone()
-        };
-        // Best of three fits: the machine is shared.
-        let mut best = f64::INFINITY;
-        for _ in 0..3 {
-            let start = Instant::now();
-            let (_, info) = p.fit(rows, &y, 1)?;
-            best = best.min(start.elapsed().as_secs_f64() / info.epochs as f64);
-        }
-        let shape = Shape::new(enc.n_inputs(), &net.hidden, act);
-        let work = EpochWork::new(&shape, t, v);
-        let gflops = work.flops() / best / 1e9;
-        out.push(ShapeFigures {
-            activation: activation_name(act),
-            widths: shape.widths().to_vec(),
-            train_rows: t,
-            val_rows: v,
-            ms_per_epoch: best * 1e3,
-            work,
-            gflops,
-            percent_of_peak: 100.0 * gflops / peak,
-            percent_of_peak_matmul: 100.0 * work.matmul_flops / best / 1e9 / peak,
-            bound_ms_per_epoch: work.bound_seconds(peak) * 1e3,
-        });
-    }
-    Ok(out)
-}
-
 /// Makespan of `jobs` scheduled longest first on `threads` identical workers.
 fn longest_first(mut jobs: Vec<f64>, threads: usize) -> f64 {
     jobs.sort_by(|a, b| b.total_cmp(a));
@@ -297,8 +236,39 @@ fn targets(env: &Option<String>) -> Vec<String> {
     }
 }
 
+/// `bench search --isa`: per environment, the network shapes at each level side by side.
+fn every_level(opts: &SearchBench, levels: &[crate::learn::cpu::Isa]) -> Result<Value> {
+    let say = |s: String| {
+        if !opts.json {
+            println!("{s}");
+        }
+    };
+    say(format!(
+        "bench search --isa · the kernel levels this CPU runs the MLP at, each timed and measured against its own FMA peak (this process would use {})",
+        kernel_isa()
+    ));
+    let mut envs = Vec::new();
+    for name in targets(&opts.env) {
+        let (spec, origin) = Spec::resolve(&name)?;
+        let env_name = spec.env.env().name();
+        let tmp = std::env::temp_dir().join(format!("bfqi-bench-levels-{}-{env_name}", std::process::id()));
+        let ev = Evaluator::new(spec.clone(), &tmp);
+        let widths =
+            Shape::new(ev.dataset(0)?.1.n_inputs(), &spec.search.network.hidden, Activation::Sigmoid).widths().to_vec();
+        let arrow: Vec<String> = widths.iter().map(usize::to_string).collect();
+        say(format!("\n{env_name} ({}) — network {}", origin.display(), arrow.join(" → ")));
+        let figures = side_by_side(&ev, levels, &say)?;
+        envs.push(json!({"env": env_name, "spec": origin.display().to_string(), "widths": widths, "levels": figures}));
+    }
+    say("\n  (the bound counts every vector operation as one slot; on the portable level an FMA is ~15 SSE2 instructions when the build has no FMA, so that level can pass its bound)".into());
+    Ok(json!({"kernels": kernel_isa(), "levels": levels.iter().map(|l| l.name()).collect::<Vec<_>>(), "envs": envs}))
+}
+
 /// Runs the search bench; prints text, or JSON with `json`.
 pub fn search(opts: &SearchBench) -> Result<Value> {
+    if let Some(levels) = &opts.isa {
+        return every_level(opts, &parse_levels(levels)?);
+    }
     let threads = rayon::current_num_threads();
     let one = pool(1)?;
     let peak = fma_peak_gflops(1.0);
@@ -344,7 +314,7 @@ pub fn search(opts: &SearchBench) -> Result<Value> {
         ));
         say(format!("  dataset 0: {transitions} transitions in {dataset_s:.2} s"));
 
-        let shape_figures = one.install(|| shapes(&ev, peak))?;
+        let shape_figures = one.install(|| shapes(&ev, kernel_level(), peak))?;
         say(format!("  network shape, {SHAPE_EPOCHS} epochs on the first model's rows, 1 thread:"));
         for f in &shape_figures {
             say(format!(

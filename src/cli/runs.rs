@@ -70,6 +70,10 @@ pub struct BenchArgs {
     /// unit's time is then projected from the iterations it ran.
     #[arg(long, default_value_t = 20.0)]
     pub cap_seconds: f64,
+    /// `search`: `all`, or kernel levels (`avx512,avx2,neon,portable`) this CPU runs: time the
+    /// network shapes at each side by side, each against its own peak and bound (no units).
+    #[arg(long)]
+    pub isa: Option<String>,
 }
 
 /// `bfqi-ga envs`.
@@ -207,7 +211,13 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
                 "invalid --cap-seconds = {}: must be > 0",
                 a.cap_seconds
             );
-            let opts = bench::SearchBench { env: a.env, python: a.python, cap_seconds: a.cap_seconds, json: a.json };
+            let opts = bench::SearchBench {
+                env: a.env,
+                python: a.python,
+                cap_seconds: a.cap_seconds,
+                json: a.json,
+                isa: a.isa,
+            };
             bench::search(&opts)?
         }
     };

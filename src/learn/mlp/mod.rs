@@ -115,8 +115,9 @@ impl MlpParams {
         self.fit_on(cpu::mlp(), x, y, seed)
     }
 
-    /// The fit, with the kernels compiled for `isa` (tests compare them).
-    fn fit_on(&self, isa: Isa, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo, Vec<EpochLoss>)> {
+    /// The fit, with the kernels compiled for `isa` (tests compare them; `bench search --isa`
+    /// times them side by side).
+    pub(crate) fn fit_on(&self, isa: Isa, x: Rows<'_>, y: &[f64], seed: u64) -> Result<(Mlp, FitInfo, Vec<EpochLoss>)> {
         self.check()?;
         check_training_data(x, y)?;
         let n = x.n_rows();
@@ -305,6 +306,16 @@ fn loss_and_gradient_on(isa: Isa, shape: &Shape, params: &[f32], x: &[f32], y: &
 /// best it has, capped by the environment variable `BFQI_ISA`; see `learn/cpu.rs`).
 pub fn kernel_isa() -> &'static str {
     cpu::mlp().name()
+}
+
+/// The kernel levels this CPU runs the MLP at, best first (whatever `BFQI_ISA` caps).
+pub(crate) fn kernel_levels() -> Vec<Isa> {
+    Isa::ALL.into_iter().filter(|i| i.runs_mlp()).collect()
+}
+
+/// [`fma_peak_gflops`] on the build for `isa` (one this CPU runs).
+pub(crate) fn fma_peak_gflops_on(isa: Isa, seconds: f64) -> f64 {
+    peak::fma_peak_gflops(isa, seconds)
 }
 
 /// This core's FP32 peak in GFLOP/s on the kernels' build (independent FMA chains; an FMA is 2
