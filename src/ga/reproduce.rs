@@ -139,3 +139,50 @@ pub fn reproduce(t: &TunedConfig, path: &Path, validation: bool) -> Result<Repro
         validation_differences: checked.map_or(Vec::new(), |v| differing(&v.scores, validation_scores)),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fqi::Fqi;
+    use crate::ga::units::{UnitResult, unit_id};
+    use crate::learn::cpu::{Isa, with_mlp_level};
+
+    /// The committed winners, unit by unit, at every MLP level this CPU runs (in CI also NEON,
+    /// under qemu-aarch64): the first FQI iteration of each winner's unit on search dataset 0
+    /// gives its committed record bit for bit — the Bellman residual, and every network's epochs,
+    /// stop reason and last losses. A whole `reproduce` is 30 units of 5–10 s natively, which
+    /// under qemu (some 350× slower) would take days; the first iteration is 2,500–3,500 epochs
+    /// on cart-pole and the bicycle and 33 epochs on the pendulum's 400,000 rows.
+    #[test]
+    fn committed_winners_first_iteration_is_the_same_on_every_level() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches");
+        let levels: Vec<Isa> = Isa::ALL.into_iter().filter(|i| i.runs_mlp()).collect();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        for env in ["cartpole", "bicycle", "pendulum"] {
+            let best = root.join(env).join("best.json");
+            let t = TunedConfig::load(&best).unwrap();
+            let (spec, c) = (t.spec.clone().unwrap(), t.chromosome.unwrap());
+            let s = decode(&c, &spec.search.genes);
+            let unit = root.join(env).join("units").join(format!("{}.json", unit_id(&s, 0)));
+            let stored: UnitResult = serde_json::from_slice(&std::fs::read(&unit).unwrap()).unwrap();
+            let want = &stored.iterations[0];
+            let ev = Evaluator::new(spec.clone(), Path::new("."));
+            let x = ev.dataset(0).unwrap();
+            let (fit_seed, eval_seed) = ev.seeds(&s, 0);
+            for &isa in &levels {
+                let got = one.install(|| {
+                    with_mlp_level(isa, || {
+                        let params = ev.network(&s);
+                        let mut fqi =
+                            Fqi::new(spec.env.env(), &x.0, &x.1, &params, ev.fqi_settings(), fit_seed, eval_seed);
+                        fqi.iterate().unwrap().unwrap()
+                    })
+                });
+                let at = format!("{env} {} at {}", unit.display(), isa.name());
+                assert_eq!(got.bellman_residual.to_bits(), want.bellman_residual.to_bits(), "{at}: residual");
+                assert_eq!(got.epochs, want.epochs, "{at}: epochs");
+                assert_eq!(got.networks, want.networks, "{at}: networks");
+            }
+        }
+    }
+}

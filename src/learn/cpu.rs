@@ -150,7 +150,29 @@ pub(crate) fn extra_trees() -> Isa {
 
 /// The level the MLP kernels run at: the best this CPU supports, capped by `BFQI_ISA`.
 pub(crate) fn mlp() -> Isa {
+    #[cfg(test)]
+    if let Some(isa) = TEST_MLP_LEVEL.with(std::cell::Cell::get) {
+        return isa;
+    }
     detected().mlp
+}
+
+#[cfg(test)]
+thread_local! {
+    /// The MLP level tests force on this thread (`BFQI_ISA` is read once per process).
+    static TEST_MLP_LEVEL: std::cell::Cell<Option<Isa>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` with the MLP kernels of `isa` on this thread (whole pipelines at each level, in tests:
+/// run it on a one-thread pool so nested parallel work stays on this thread). The kernels'
+/// dispatch still checks the CPU, so a level it lacks cannot run.
+#[cfg(test)]
+pub(crate) fn with_mlp_level<R>(isa: Isa, f: impl FnOnce() -> R) -> R {
+    assert!(isa.runs_mlp(), "{isa:?} does not run on this CPU");
+    let before = TEST_MLP_LEVEL.with(|c| c.replace(Some(isa)));
+    let out = f();
+    TEST_MLP_LEVEL.with(|c| c.set(before));
+    out
 }
 
 #[cfg(test)]
