@@ -158,9 +158,13 @@ impl PairedTest {
 /// One-sided p-value of Wilcoxon's signed-rank test that the differences `d` lie below 0 (scipy's
 /// `wilcoxon(d, alternative="less")`): zero differences are dropped (`zero_method="wilcox"`), tied
 /// |d| share their mean rank, and the statistic is R⁺, the rank sum of the positive differences.
-/// Without ties and with at most 50 non-zero differences the p-value is exact, P(R⁺ ≤ r) counted
-/// over the 2ⁿ sign patterns; otherwise the normal approximation with the tie correction of the
-/// variance (no continuity correction). No non-zero difference: 1 (no evidence either way).
+/// With at most 50 non-zero differences the p-value is exact: P(R⁺ ≤ r) counted over the 2ⁿ sign
+/// patterns of the ranks as they are (mid-ranks included, the permutation distribution given the
+/// ties). Without ties that is scipy's exact p-value; with ties scipy switches to the normal
+/// approximation, which on 4 tied pairs can claim p = 0.03 where no sign pattern is rarer than
+/// 2⁻⁴ — a race would stop a setting sooner than the test allows. Above 50, the normal
+/// approximation with the tie correction of the variance (no continuity correction), as scipy's.
+/// No non-zero difference: 1 (no evidence either way).
 pub fn wilcoxon_less(d: &[f64]) -> f64 {
     let mut nz: Vec<f64> = d.iter().copied().filter(|x| *x != 0.0).collect();
     let n = nz.len();
@@ -168,29 +172,31 @@ pub fn wilcoxon_less(d: &[f64]) -> f64 {
         return 1.0;
     }
     nz.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
-    // Mean ranks over runs of equal |d|, and the tie term Σ(t³ − t).
-    let (mut r_plus, mut ties, mut i) = (0.0, 0.0, 0);
+    // Twice the mean ranks over runs of equal |d| (integers: i + 1 + j over a run i..j), and the
+    // tie term Σ(t³ − t).
+    let (mut ranks2, mut r2_plus, mut ties, mut i) = (Vec::with_capacity(n), 0usize, 0.0, 0);
     while i < n {
         let j = (i..n).find(|&j| nz[j].abs() != nz[i].abs()).unwrap_or(n);
-        let rank = (i + 1 + j) as f64 / 2.0;
-        r_plus += nz[i..j].iter().filter(|x| **x > 0.0).count() as f64 * rank;
+        let rank2 = i + 1 + j;
+        ranks2.extend(std::iter::repeat_n(rank2, j - i));
+        r2_plus += nz[i..j].iter().filter(|x| **x > 0.0).count() * rank2;
         let t = (j - i) as f64;
         ties += t * t * t - t;
         i = j;
     }
-    if ties == 0.0 && n <= 50 {
-        // counts[s]: sign patterns whose positive ranks sum to s (exact in f64 up to 2⁵³).
-        let max = n * (n + 1) / 2;
+    if n <= 50 {
+        // counts[s]: sign patterns whose positive doubled ranks sum to s (exact in f64 to 2⁵³).
+        let max = n * (n + 1);
         let mut counts = vec![0.0f64; max + 1];
         counts[0] = 1.0;
-        for k in 1..=n {
+        for &k in &ranks2 {
             for s in (k..=max).rev() {
                 counts[s] += counts[s - k];
             }
         }
-        let r = r_plus as usize;
-        return counts[..=r].iter().sum::<f64>() / 2f64.powi(n as i32);
+        return counts[..=r2_plus].iter().sum::<f64>() / 2f64.powi(n as i32);
     }
+    let r_plus = r2_plus as f64 / 2.0;
     let nf = n as f64;
     let mean = nf * (nf + 1.0) / 4.0;
     let var = nf * (nf + 1.0) * (2.0 * nf + 1.0) / 24.0 - ties / 48.0;
@@ -442,18 +448,25 @@ mod tests {
     }
 
     #[test]
-    fn wilcoxon_with_ties_uses_the_corrected_normal_approximation() {
-        // |d| = 1, 1, 2, 3, 3, 3: ranks 1.5, 1.5, 3, 5, 5, 5; positive: one 1 and one 3 → R⁺ = 6.5.
-        // Mean 6·7/4 = 10.5; variance 6·7·13/24 − ((8 − 2) + (27 − 3))/48 = 22.75 − 0.625.
-        let d = [1.0, -1.0, -2.0, 3.0, -3.0, -3.0];
-        let z = (6.5 - 10.5) / (22.75f64 - 0.625).sqrt();
-        assert!((wilcoxon_less(&d) - normal_cdf(z)).abs() < 1e-15);
-        // z = −0.850390…: Φ(z) = 0.197554….
-        assert!((wilcoxon_less(&d) - 0.197_554_034).abs() < 1e-8, "{}", wilcoxon_less(&d));
-        // 60 distinct differences, above the exact limit, all negative: R⁺ = 0, z = −mean/√var.
+    fn wilcoxon_with_ties_counts_sign_patterns_of_the_mid_ranks() {
+        // |d| = 1, 1, 2, 3, 3, 3: mid-ranks 1.5, 1.5, 3, 5, 5, 5; positive: one 1.5 and one 5, so
+        // R⁺ = 6.5. Of the 64 sign patterns, 17 have R⁺ ≤ 6.5 (listed by brute force).
+        assert_eq!(wilcoxon_less(&[1.0, -1.0, -2.0, 3.0, -3.0, -3.0]), 17.0 / 64.0);
+        // Four tied differences, all negative: 2⁻⁴, not the normal approximation's 0.029.
+        assert_eq!(wilcoxon_less(&[-90.0, -90.0, -85.0, -90.0]), 1.0 / 16.0);
+        assert_eq!(wilcoxon_less(&[40.0, 42.0, 38.0, 41.0, 39.0, 40.0]), 1.0);
+    }
+
+    #[test]
+    fn wilcoxon_above_50_pairs_uses_the_tie_corrected_normal_approximation() {
+        // 60 distinct differences, all negative: R⁺ = 0, z = −mean/√var.
         let many: Vec<f64> = (1..=60).map(|i| -(i as f64)).collect();
         let (m, v) = (60.0 * 61.0 / 4.0, 60.0 * 61.0 * 121.0 / 24.0);
         assert!((wilcoxon_less(&many) - normal_cdf(-m / f64::sqrt(v))).abs() < 1e-20);
+        // 30 tied pairs: the variance loses 30·(2³ − 2)/48; z = −6.736551…, Φ(z) = 8.1095025e-12.
+        let pairs: Vec<f64> = (0..60).map(|i| -((i / 2 + 1) as f64)).collect();
+        let p = wilcoxon_less(&pairs);
+        assert!((p - 8.109_502_507_979e-12).abs() < 1e-21, "{p}");
     }
 
     #[test]
