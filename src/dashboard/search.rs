@@ -277,8 +277,10 @@ pub fn page(run: &Run) -> (Vec<Table>, Value) {
 /// Racing's decisions (`search.race`), one row per raced individual, titled with the count raced
 /// out; none when the search did not race.
 fn racing_table(run: &Run, gens: &[GenerationRecord]) -> Option<Table> {
-    let raced: Vec<(usize, &crate::ga::records::IndividualRecord)> =
-        gens.iter().flat_map(|g| g.individuals.iter().filter(|i| i.race.is_some()).map(move |i| (g.generation, i))).collect();
+    let raced: Vec<(usize, &crate::ga::records::IndividualRecord)> = gens
+        .iter()
+        .flat_map(|g| g.individuals.iter().filter(|i| i.race.is_some()).map(move |i| (g.generation, i)))
+        .collect();
     if raced.is_empty() {
         return None;
     }

@@ -162,7 +162,8 @@ mod tests {
         for n in 0..5 {
             assert_eq!(judge(&worse[..n], 10, &[&elite], &WILCOXON), Verdict::Open(n));
         }
-        let stop = Verdict::Done { keep: 5, race: Some(RaceRecord { datasets: 5, p: Some(1.0 / 32.0), stopped: true }) };
+        let stop =
+            Verdict::Done { keep: 5, race: Some(RaceRecord { datasets: 5, p: Some(1.0 / 32.0), stopped: true }) };
         assert_eq!(judge(&worse[..5], 10, &[&elite], &WILCOXON), stop);
         // Stored further (an earlier generation, --units-from): decided where it would have been.
         assert_eq!(judge(&worse, 10, &[&elite], &WILCOXON), stop);
@@ -216,7 +217,13 @@ mod tests {
     /// (paired tests remove it) and its own noise.
     fn scores(seed: u64, truth: f64, i: u64) -> Vec<Option<f64>> {
         (0..10u64)
-            .map(|k| Some(truth + 20.0 * normal(seed, "racing-test-dataset", &[k]) + normal(seed, "racing-test-noise", &[i, k])))
+            .map(|k| {
+                Some(
+                    truth
+                        + 20.0 * normal(seed, "racing-test-dataset", &[k])
+                        + normal(seed, "racing-test-noise", &[i, k]),
+                )
+            })
             .collect()
     }
 

@@ -253,7 +253,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
         }
         progress.start_stage(&format!("gen {g}"), 0);
         let mut pruned: HashSet<String> = HashSet::new();
-        let mut raced: HashMap<String, (usize, Option<RaceRecord>)> = HashMap::new();
+        let mut raced: Raced = HashMap::new();
         let race = s.race.filter(|_| !elites.is_empty());
         let stopped = match prune_below.filter(|_| s.prune.enabled) {
             None if race.is_some() => {
@@ -262,7 +262,9 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
                 let exempt: HashSet<String> = elites
                     .iter()
                     .map(|(e, _)| e.clone())
-                    .chain(settings.iter().zip(&origins).filter(|(_, o)| **o == Origin::Elite).map(|(x, _)| setting_id(x)))
+                    .chain(
+                        settings.iter().zip(&origins).filter(|(_, o)| **o == Origin::Elite).map(|(x, _)| setting_id(x)),
+                    )
                     .collect();
                 let (stop, decided) =
                     race_generation(&runner, g, &distinct, &elites, &exempt, best.as_ref().map(|b| &b.0))?;
@@ -474,6 +476,9 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
     Ok(Ending::Finished(reason))
 }
 
+/// What racing decided per setting: the scores its record keeps, and the decision.
+type Raced = HashMap<String, (usize, Option<RaceRecord>)>;
+
 /// Runs generation `g`'s settings under racing: each setting's datasets as a chain in index order,
 /// judged after each stored unit against `elites` ([`racing::judge`]); an `exempt` setting (an
 /// elite's) runs in full, never raced. Returns why the run must stop, if it must, and what racing
@@ -485,11 +490,11 @@ fn race_generation(
     elites: &[(String, Vec<Option<f64>>)],
     exempt: &HashSet<String>,
     best: Option<&IndividualRecord>,
-) -> Result<(Option<Stop>, HashMap<String, (usize, Option<RaceRecord>)>)> {
+) -> Result<(Option<Stop>, Raced)> {
     let (ev, s) = (runner.ev, &runner.spec.search);
     let rule = s.race.expect("racing is on");
     let against: Vec<&[Option<f64>]> = elites.iter().map(|(_, sc)| sc.as_slice()).collect();
-    let decided: Mutex<HashMap<String, (usize, Option<RaceRecord>)>> = Mutex::new(HashMap::new());
+    let decided: Mutex<Raced> = Mutex::new(HashMap::new());
     let next = |x: &Decoded| -> Option<usize> {
         let id = setting_id(x);
         let sc = stored_scores(ev, x, s.datasets);

@@ -272,7 +272,13 @@ fn racing(rule: &crate::ga::racing::RaceRule, records: &[GenerationRecord]) -> S
     for r in records {
         for i in r.individuals.iter() {
             if let Some(d) = &i.race {
-                md.push_str(&format!("| {} | {} | {} | {} |\n", r.generation, i.index, describe(&i.decoded), d.describe()));
+                md.push_str(&format!(
+                    "| {} | {} | {} | {} |\n",
+                    r.generation,
+                    i.index,
+                    describe(&i.decoded),
+                    d.describe()
+                ));
             }
         }
     }
