@@ -3,7 +3,9 @@
 //! resumes, and the decisions in the report, `status` and the dashboard's JSON.
 
 mod common;
-use common::{TempDir, bin, fresh, json, read, spawn_quiet, tiny_with, wait_for_entries};
+use common::{TempDir, bin, fresh, http_get, json, read, spawn_quiet, tiny_with, wait_for_entries};
+
+use bfqi_ga::dashboard::{Dashboard, Options};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -105,6 +107,18 @@ fn racing_records_its_decisions_never_stops_an_elite_and_is_deterministic() {
     let st = bin().arg("status").arg(&a).output().unwrap();
     let line = String::from_utf8_lossy(&st.stdout);
     assert!(line.contains(&format!("racing (wilcoxon 80 %): {out} of {} raced out", out + survived)), "{line}");
+
+    // The dashboard's search page: a Racing table titled with the count, a row per raced individual.
+    let d = Dashboard::bind(&Options { roots: vec![base.to_path_buf()], host: "127.0.0.1".into(), port: 0 }).unwrap();
+    let (url, stopper) = (d.url().to_string(), d.stopper());
+    let server = std::thread::spawn(move || d.run());
+    let page: serde_json::Value = serde_json::from_str(&http_get(&url, "/run/0/jobs1?json=1").body).unwrap();
+    stopper();
+    server.join().unwrap();
+    let t = page["tables"].as_array().unwrap().iter().find(|t| t["name"] == "racing").expect("a racing table");
+    assert!(t["title"].as_str().unwrap().contains(&format!("{out} of {} raced individuals raced out", out + survived)));
+    assert_eq!(t["rows"].as_array().unwrap().len(), out + survived);
+    assert!(t.to_string().contains("stopped after "), "{t}");
 
     // Killed mid-search (SIGKILL) and resumed, then stopped again and again by a tiny time
     // budget: the same decisions and the same search.
