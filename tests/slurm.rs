@@ -153,6 +153,49 @@ fn a_pruned_search_through_slurm_matches_local() {
 }
 
 #[test]
+fn a_raced_search_through_slurm_matches_local() {
+    // Raced generations run each new setting's datasets as chains too (`search.race`): the same
+    // decisions through Slurm's job arrays as locally.
+    let d = tmp("raced");
+    let overlay = d.join("race.json");
+    std::fs::write(&overlay, r#"{"search": {"race": {"test": "wilcoxon", "confidence": 0.8, "first": 3}}}"#).unwrap();
+    let run = |out: &Path, extra: &[&str], env: &[(&str, String)]| {
+        let mut c = bin();
+        c.args(["search", "cartpole", "--preset", overlay.to_str().unwrap()])
+            .args(tiny_with(&[
+                "--seed",
+                "3",
+                "--datasets",
+                "4",
+                "--population",
+                "8",
+                "--generations",
+                "4",
+                "--episodes",
+                "40",
+            ]))
+            .arg("--out")
+            .arg(out)
+            .args(extra);
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        c.env("BFQI_SQUEUE", support("fake-squeue.sh"));
+        c.output().unwrap()
+    };
+    let (local, slurm) = (d.join("local"), d.join("slurm"));
+    let o = run(&local, &[], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_STATE", d.join("state").display().to_string())];
+    let o = run(&slurm, &["--executor", "slurm"], &env);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["generations.jsonl", "best.json"] {
+        assert_eq!(read(local.join(f)), read(slurm.join(f)), "{f}: slurm vs local");
+    }
+    assert!(read(slurm.join("generations.jsonl")).contains("\"stopped\":true"), "nobody was raced out");
+}
+
+#[test]
 fn a_unit_that_always_fails_is_reported_with_its_log() {
     let d = tmp("always");
     let env = [("BFQI_SBATCH", fake()), ("FAKE_SBATCH_DROP_ALWAYS", "0".to_string())];

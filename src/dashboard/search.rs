@@ -58,6 +58,8 @@ struct Point {
     fitness: Option<f64>,
     partial: Option<f64>,
     pruned: bool,
+    /// Raced out (`search.race`) in its last record: after how many datasets, and the p-value.
+    raced: Option<crate::ga::racing::RaceRecord>,
     diverged: bool,
     first: usize,
 }
@@ -74,13 +76,15 @@ fn points(gens: &[GenerationRecord]) -> Vec<Point> {
                 fitness: None,
                 partial: None,
                 pruned: false,
+                raced: None,
                 diverged: false,
                 first: g.generation,
             });
             p.fitness = ind.fitness;
             p.partial = ind.partial_mean();
             p.pruned = ind.pruned;
-            p.diverged = !ind.pruned && ind.fitness.is_none();
+            p.raced = ind.race.filter(|r| r.stopped);
+            p.diverged = !ind.stopped_early() && ind.fitness.is_none();
         }
     }
     by.into_values().collect()
@@ -212,6 +216,8 @@ pub fn page(run: &Run) -> (Vec<Table>, Value) {
     for p in &pts {
         let state = if p.pruned {
             format!("pruned (partial {})", num(p.partial))
+        } else if let Some(r) = p.raced {
+            format!("raced out: {} (partial {})", r.describe(), num(p.partial))
         } else if p.diverged {
             "diverged".into()
         } else {
@@ -233,6 +239,9 @@ pub fn page(run: &Run) -> (Vec<Table>, Value) {
         tables.extend(validation_tables(run, v));
     }
     tables.push(pop);
+    if let Some(t) = racing_table(run, &gens) {
+        tables.push(t);
+    }
     let imp = importance(&pts);
     let mut it = Table::new(
         "importance",
@@ -256,12 +265,43 @@ pub fn page(run: &Run) -> (Vec<Table>, Value) {
         })).collect::<Vec<_>>(),
         "points": pts.iter().map(|p| json!({
             "id": p.id, "activation": p.activation, "delta_min": p.delta_min, "patience": p.patience,
-            "fitness": p.fitness, "partial": p.partial, "pruned": p.pruned, "diverged": p.diverged,
+            "fitness": p.fitness, "partial": p.partial, "pruned": p.pruned || p.raced.is_some(),
+            "raced": p.raced.map(|r| r.describe()), "diverged": p.diverged,
             "first": p.first, "url": setting_url(run, &p.id),
         })).collect::<Vec<_>>(),
         "reference": reference.map(|f| json!({"label": "thesis optimum", "value": f})),
     });
     (tables, chart)
+}
+
+/// Racing's decisions (`search.race`), one row per raced individual, titled with the count raced
+/// out; none when the search did not race.
+fn racing_table(run: &Run, gens: &[GenerationRecord]) -> Option<Table> {
+    let raced: Vec<(usize, &crate::ga::records::IndividualRecord)> = gens
+        .iter()
+        .flat_map(|g| g.individuals.iter().filter(|i| i.race.is_some()).map(move |i| (g.generation, i)))
+        .collect();
+    if raced.is_empty() {
+        return None;
+    }
+    let out = raced.iter().filter(|(_, i)| i.raced_out()).count();
+    let mut t = Table::new(
+        "racing",
+        &format!("Racing (beyond the thesis): {out} of {} raced individuals raced out", raced.len()),
+        &["generation", "individual", "setting", "decision", "datasets", "p"],
+    );
+    for (g, i) in raced {
+        let r = i.race.expect("filtered");
+        t.push(vec![
+            Cell::text(g.to_string()),
+            Cell::text(i.index.to_string()),
+            Cell::link(&i.setting, setting_url(run, &i.setting)),
+            Cell::text(r.describe()),
+            Cell::text(r.datasets.to_string()),
+            Cell::num(r.p),
+        ]);
+    }
+    Some(t)
 }
 
 fn summary(run: &Run, gens: &[GenerationRecord]) -> Table {
@@ -467,6 +507,7 @@ mod tests {
             fitness: Some(fitness),
             partial: None,
             pruned: false,
+            raced: None,
             diverged: false,
             first: 0,
         }

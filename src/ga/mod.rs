@@ -5,6 +5,7 @@ pub mod fitness;
 pub mod operators;
 pub mod prune;
 pub mod race;
+pub mod racing;
 pub mod records;
 mod reproduce;
 mod runner;

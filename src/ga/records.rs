@@ -124,6 +124,11 @@ pub struct IndividualRecord {
     /// Pruned (`search.prune`): its datasets stopped once their mean fell below the cutoff.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub pruned: bool,
+    /// What racing decided (`search.race`): stopped after some datasets with its p-value, or
+    /// survived them all; absent when it was not raced (racing off, generation 0, an elite's
+    /// setting, or diverged before a test).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub race: Option<super::racing::RaceRecord>,
     /// How it came about.
     pub origin: Origin,
     /// A child's parents (their positions in the previous generation), its genes after the
@@ -154,6 +159,16 @@ impl IndividualRecord {
         self.fitness.unwrap_or(f64::NEG_INFINITY)
     }
 
+    /// Raced out (`search.race`): stopped as worse than every elite.
+    pub fn raced_out(&self) -> bool {
+        self.race.is_some_and(|r| r.stopped)
+    }
+
+    /// Stopped before its last dataset, by pruning or racing: never an elite or a parent.
+    pub fn stopped_early(&self) -> bool {
+        self.pruned || self.raced_out()
+    }
+
     /// The mean of the scores run so far (a pruned individual's partial score).
     pub fn partial_mean(&self) -> Option<f64> {
         finite(fitness(&self.scores)).filter(|_| !self.scores.is_empty())
@@ -176,6 +191,9 @@ pub struct GenerationStats {
     /// Individuals pruned (`search.prune`).
     #[serde(default)]
     pub pruned: usize,
+    /// Individuals raced out (`search.race`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub raced: usize,
 }
 
 /// One line of `generations.jsonl`.
@@ -195,6 +213,10 @@ pub struct GenerationRecord {
     /// parent-pool line minus the margin; absent when pruning is off or in generation 0.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub prune_below: Option<f64>,
+    /// The elites' settings this generation's new settings were raced against (`search.race`);
+    /// absent when racing is off or in generation 0.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub race_against: Vec<String>,
     /// Best individual so far (over all generations).
     pub best_so_far: IndividualRecord,
     /// Generation in which the best so far was found.

@@ -14,6 +14,7 @@
 use super::chromosome::{Chromosome, Decoded, decode};
 use super::operators::{Birth, initial_population, next_generation, random_generation, rank};
 use super::prune;
+use super::racing::{self, RaceRecord};
 use super::records::finite;
 pub use super::records::{
     GenerationRecord, GenerationStats, IndividualRecord, Origin, Phase, Resumed, RunInfo, RunState, fitness,
@@ -28,11 +29,11 @@ pub use super::units::{Evaluator, UnitResult, describe, parse_unit_id, unit_id};
 use crate::error::{Error, Result};
 use crate::exec::Executor;
 use crate::progress::{Progress, human};
-use crate::run_dir::{Budget, Ending, UnitStore};
+use crate::run_dir::{Budget, Ending, Stop, UnitStore};
 use crate::spec::{Spec, Strategy};
 use crate::stats::summarize;
 use crate::store::{self, RunLock, read_json, write_atomic, write_json};
-use std::collections::HashSet;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -41,7 +42,8 @@ fn stored_scores(ev: &Evaluator, s: &Decoded, n: usize) -> Vec<Option<f64>> {
     (0..n).map_while(|d| ev.load_unit(&unit_id(s, d)).map(|u| u.score)).collect()
 }
 
-/// The record of individual `index`, from the stored scores of its setting.
+/// The record of individual `index`, from the stored scores of its setting; `raced` is what racing
+/// decided for the setting (the scores its record keeps, and the decision), if it was raced.
 fn record_for(
     index: usize,
     c: &Chromosome,
@@ -49,16 +51,22 @@ fn record_for(
     origin: Origin,
     birth: Option<Birth>,
     pruned: bool,
+    raced: Option<&(usize, Option<RaceRecord>)>,
 ) -> Result<IndividualRecord> {
     let s = &ev.spec().search;
     let decoded = decode(c, &s.genes);
-    let scores = stored_scores(ev, &decoded, s.datasets);
+    let mut scores = stored_scores(ev, &decoded, s.datasets);
+    let race = raced.and_then(|(keep, r)| {
+        scores.truncate(*keep);
+        *r
+    });
+    let stopped = pruned || race.is_some_and(|r| r.stopped);
     let complete = scores.len() == s.datasets;
-    if !complete && !pruned && !scores.contains(&None) {
+    if !complete && !stopped && !scores.contains(&None) {
         let id = unit_id(&decoded, scores.len());
         return Err(Error::File { path: ev.unit_path(&id), message: "missing unit result after evaluation".into() });
     }
-    let f = if complete && !pruned { fitness(&scores) } else { f64::NEG_INFINITY };
+    let f = if complete && !stopped { fitness(&scores) } else { f64::NEG_INFINITY };
     Ok(IndividualRecord {
         index,
         genes: *c,
@@ -68,6 +76,7 @@ fn record_for(
         scores,
         fitness: finite(f),
         pruned,
+        race,
         origin,
         birth,
     })
@@ -77,13 +86,15 @@ fn stats(records: &[IndividualRecord]) -> GenerationStats {
     let f: Vec<f64> = records.iter().filter_map(|r| r.fitness).collect();
     let s = summarize(&f);
     let pruned = records.iter().filter(|r| r.pruned).count();
+    let raced = records.iter().filter(|r| r.raced_out()).count();
     GenerationStats {
         min: f.iter().copied().reduce(f64::min),
         mean: s.map(|s| s.mean),
         max: f.iter().copied().reduce(f64::max),
         std: s.map(|s| s.std),
-        diverged: records.len() - f.len() - pruned,
+        diverged: records.len() - f.len() - pruned - raced,
         pruned,
+        raced,
     }
 }
 
@@ -217,6 +228,9 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
     // Pruning's cutoff: the previous generation's parent-pool line, known before any unit of this
     // generation runs, so the decisions do not depend on thread count, order or executor.
     let mut prune_below: Option<f64> = None;
+    // Racing's elites: the previous generation's best with a finite fitness (their settings and
+    // full scores), likewise known before any unit of this generation runs.
+    let mut elites: Vec<(String, Vec<Option<f64>>)> = Vec::new();
     {
         let c = runner.clock.lock().expect("clock");
         let info = StateInfo {
@@ -239,7 +253,24 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
         }
         progress.start_stage(&format!("gen {g}"), 0);
         let mut pruned: HashSet<String> = HashSet::new();
+        let mut raced: Raced = HashMap::new();
+        let race = s.race.filter(|_| !elites.is_empty());
         let stopped = match prune_below.filter(|_| s.prune.enabled) {
+            None if race.is_some() => {
+                // Never raced: the elites compared against, and every individual carried over as an
+                // elite (one with fitness −∞ is not compared against, but is not stopped either).
+                let exempt: HashSet<String> = elites
+                    .iter()
+                    .map(|(e, _)| e.clone())
+                    .chain(
+                        settings.iter().zip(&origins).filter(|(_, o)| **o == Origin::Elite).map(|(x, _)| setting_id(x)),
+                    )
+                    .collect();
+                let (stop, decided) =
+                    race_generation(&runner, g, &distinct, &elites, &exempt, best.as_ref().map(|b| &b.0))?;
+                raced = decided;
+                stop
+            }
             None => {
                 let want: Vec<(Decoded, usize)> =
                     distinct.iter().flat_map(|x| (0..s.datasets).map(move |d| (*x, d))).collect();
@@ -290,7 +321,10 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
         let mut individuals: Vec<IndividualRecord> = population
             .iter()
             .enumerate()
-            .map(|(i, c)| record_for(i, c, &ev, origins[i], births[i], pruned.contains(&setting_id(&settings[i]))))
+            .map(|(i, c)| {
+                let id = setting_id(&settings[i]);
+                record_for(i, c, &ev, origins[i], births[i], pruned.contains(&id), raced.get(&id))
+            })
             .collect::<Result<_>>()?;
         for i in 0..individuals.len() {
             let key = individuals[i].setting.clone();
@@ -307,7 +341,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
             }
         }
         let fit: Vec<f64> = individuals.iter().map(IndividualRecord::rank_fitness).collect();
-        let eligible: Vec<bool> = individuals.iter().map(|r| !r.pruned).collect();
+        let eligible: Vec<bool> = individuals.iter().map(|r| !r.stopped_early()).collect();
         let mut order: Vec<usize> = rank(&fit).into_iter().filter(|&i| eligible[i]).collect();
         if order.is_empty() {
             // Everyone pruned (possible only without elites): rank them all, as −∞.
@@ -324,7 +358,7 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
         } else {
             stall += 1;
         }
-        for r in individuals.iter().filter(|r| !r.pruned) {
+        for r in individuals.iter().filter(|r| !r.stopped_early()) {
             if !hall.iter().any(|(h, _)| h.setting == r.setting) {
                 hall.push((r.clone(), g));
             }
@@ -340,12 +374,21 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
             .get(s.ga.n_parents().min(order.len()) - 1)
             .map(|&i| fit[i] - s.prune.margin)
             .filter(|v| v.is_finite());
+        let race_against = if race.is_some() { elites.iter().map(|(e, _)| e.clone()).collect() } else { Vec::new() };
+        // The next generation's elites: as many as the GA keeps (at least the best), in rank order.
+        elites = order
+            .iter()
+            .filter(|&&i| individuals[i].fitness.is_some())
+            .take(s.ga.n_elites().max(1))
+            .map(|&i| (individuals[i].setting.clone(), individuals[i].scores.clone()))
+            .collect();
         records.push(GenerationRecord {
             generation: g,
             individuals,
             stats: st.clone(),
             new_units,
             prune_below: this_cutoff,
+            race_against,
             best_so_far: b.clone(),
             best_generation: bg,
         });
@@ -381,7 +424,13 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
             fmt(st.max),
             fmt(st.mean),
             st.diverged,
-            if s.prune.enabled { format!(", {} pruned", st.pruned) } else { String::new() },
+            if s.prune.enabled {
+                format!(", {} pruned", st.pruned)
+            } else if s.race.is_some() {
+                format!(", {} raced out", st.raced)
+            } else {
+                String::new()
+            },
             cost,
             describe(&b.decoded),
             fmt(b.fitness),
@@ -425,6 +474,44 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
     };
     write_state(dir, &spec, &info, &c)?;
     Ok(Ending::Finished(reason))
+}
+
+/// What racing decided per setting: the scores its record keeps, and the decision.
+type Raced = HashMap<String, (usize, Option<RaceRecord>)>;
+
+/// Runs generation `g`'s settings under racing: each setting's datasets as a chain in index order,
+/// judged after each stored unit against `elites` ([`racing::judge`]); an `exempt` setting (an
+/// elite's) runs in full, never raced. Returns why the run must stop, if it must, and what racing
+/// decided per setting (the scores its record keeps, and the decision).
+fn race_generation(
+    runner: &Runner<'_>,
+    g: usize,
+    distinct: &[Decoded],
+    elites: &[(String, Vec<Option<f64>>)],
+    exempt: &HashSet<String>,
+    best: Option<&IndividualRecord>,
+) -> Result<(Option<Stop>, Raced)> {
+    let (ev, s) = (runner.ev, &runner.spec.search);
+    let rule = s.race.expect("racing is on");
+    let against: Vec<&[Option<f64>]> = elites.iter().map(|(_, sc)| sc.as_slice()).collect();
+    let decided: Mutex<Raced> = Mutex::new(HashMap::new());
+    let next = |x: &Decoded| -> Option<usize> {
+        let id = setting_id(x);
+        let sc = stored_scores(ev, x, s.datasets);
+        if exempt.contains(&id) {
+            return (sc.len() < s.datasets && !sc.contains(&None)).then_some(sc.len());
+        }
+        match racing::judge(&sc, s.datasets, &against, &rule) {
+            racing::Verdict::Open(d) => Some(d),
+            racing::Verdict::Done { keep, race } => {
+                decided.lock().expect("decided").insert(id, (keep, race));
+                None
+            }
+        }
+    };
+    let first: Vec<(Decoded, usize)> = distinct.iter().filter_map(|x| next(x).map(|d| (*x, d))).collect();
+    let stop = runner.run_chained(g, &first, &next, best)?;
+    Ok((stop, decided.into_inner().expect("decided")))
 }
 
 fn fmt(v: Option<f64>) -> String {

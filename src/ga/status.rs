@@ -67,10 +67,11 @@ pub fn line(dir: &Path) -> Result<String> {
         };
         if own.is_empty() { String::new() } else { format!("{own}{race}{other})") }
     });
+    let raced = racing(dir);
     // A failed run says why (every setting diverged, a full disk) and that it resumes.
     let failed = if state == Phase::Failed { format!("  failed: {}", st.reason) } else { String::new() };
     Ok(format!(
-        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}{}{}",
+        "{:<9} {:<12} gen {:>3}/{:<3} best {:>12}{}  {}  {}{}{}{}{}",
         env,
         state.name(),
         st.generation,
@@ -80,9 +81,31 @@ pub fn line(dir: &Path) -> Result<String> {
         best,
         dir.display(),
         timing,
+        raced,
         failed,
         problems(dir).iter().map(|p| format!("  ! {p}")).collect::<String>()
     ))
+}
+
+/// A racing search's decisions so far (`search.race`): the individuals raced out of those raced,
+/// and the latest one stopped; empty when the search does not race.
+fn racing(dir: &Path) -> String {
+    let Some(rule) = load_spec(dir).ok().and_then(|s| s.search.race) else { return String::new() };
+    let text = std::fs::read_to_string(dir.join("generations.jsonl")).unwrap_or_default();
+    let (mut raced, mut out, mut last) = (0, 0, String::new());
+    // A line being appended by a running search is skipped.
+    for r in text.lines().filter_map(|l| serde_json::from_str::<super::records::GenerationRecord>(l).ok()) {
+        for i in &r.individuals {
+            if let Some(d) = i.race {
+                raced += 1;
+                if d.stopped {
+                    out += 1;
+                    last = format!("; last: gen {} #{} {}", r.generation, i.index, d.describe());
+                }
+            }
+        }
+    }
+    format!("  racing ({} {} %): {out} of {raced} raced out{last}", rule.test.name(), rule.confidence * 100.0)
 }
 
 /// The line of a search created but stopped before its first state was written (a kill in its

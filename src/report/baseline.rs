@@ -160,6 +160,7 @@ mod tests {
             .unwrap(),
             new_units,
             prune_below: None,
+            race_against: Vec::new(),
             best_so_far: b,
             best_generation: 0,
         }

@@ -189,10 +189,15 @@ pub fn write(dir: &Path) -> Result<usize> {
         ));
     }
     let pruning = s.prune.enabled;
+    let (extra, extra_rule) = if pruning {
+        (" | pruned", "---|")
+    } else if s.race.is_some() {
+        (" | raced out", "---|")
+    } else {
+        ("", "")
+    };
     md.push_str(&format!(
-        "\n| generation | new units | epochs | wall | best | mean | min | diverged{} | best so far | settings |\n|---|---|---|---|---|---|---|---|{}---|---|\n",
-        if pruning { " | pruned" } else { "" },
-        if pruning { "---|" } else { "" }
+        "\n| generation | new units | epochs | wall | best | mean | min | diverged{extra} | best so far | settings |\n|---|---|---|---|---|---|---|---|{extra_rule}---|---|\n"
     ));
     // A generation computed entirely by the run whose units this one took (`--units-from`) has no
     // wall time of its own: say so instead of "0 s".
@@ -216,7 +221,13 @@ pub fn write(dir: &Path) -> Result<usize> {
             fmt(r.stats.mean),
             fmt(r.stats.min),
             r.stats.diverged,
-            if pruning { format!(" | {}", r.stats.pruned) } else { String::new() },
+            if pruning {
+                format!(" | {}", r.stats.pruned)
+            } else if s.race.is_some() {
+                format!(" | {}", r.stats.raced)
+            } else {
+                String::new()
+            },
             fmt(r.best_so_far.fitness),
             describe(&r.best_so_far.decoded)
         ));
@@ -226,6 +237,9 @@ pub fn write(dir: &Path) -> Result<usize> {
          networks' epochs; `wall`: the generation's wall time, summed over invocations.\n",
     );
     md.push_str("\n![fitness per generation](fitness.png)\n");
+    if let Some(rule) = &s.race {
+        md.push_str(&racing(rule, &records));
+    }
     if let Some(v) = validate::load(dir) {
         md.push_str(&v.markdown(spec.env.env().name()));
         md.push_str(&side_by_side(&v, spec.env.env().name()));
@@ -241,6 +255,36 @@ pub fn write(dir: &Path) -> Result<usize> {
 
 /// The tuned config beside the thesis optimum, dataset by dataset, on the search and the
 /// validation datasets.
+/// The Racing section: the rule, then every raced individual's decision, generation by generation.
+fn racing(rule: &crate::ga::racing::RaceRule, records: &[GenerationRecord]) -> String {
+    let raced: usize = records.iter().map(|r| r.stats.raced).sum();
+    let mut md = format!(
+        "\n## Racing (beyond the thesis)\n\nEach new setting ran its datasets in index order against the \
+         previous generation's elites and was stopped once a one-sided paired {} test put it below every \
+         elite at {} % confidence, testing from dataset {} on (the test can stop a setting from dataset {}); \
+         elites are never stopped. {raced} individuals were raced out.\n\n\
+         | generation | individual | setting | decision |\n|---|---|---|---|\n",
+        rule.test.name(),
+        rule.confidence * 100.0,
+        rule.first,
+        rule.fewest()
+    );
+    for r in records {
+        for i in r.individuals.iter() {
+            if let Some(d) = &i.race {
+                md.push_str(&format!(
+                    "| {} | {} | {} | {} |\n",
+                    r.generation,
+                    i.index,
+                    describe(&i.decoded),
+                    d.describe()
+                ));
+            }
+        }
+    }
+    md
+}
+
 fn side_by_side(v: &Validation, env: &str) -> String {
     let Some(ours) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
     let Some(thesis) = v.thesis_entry(env) else { return String::new() };

@@ -179,6 +179,10 @@ pub struct SearchSpec {
     /// (beyond the thesis; off when absent).
     #[serde(default)]
     pub prune: crate::ga::prune::PruneRule,
+    /// Opt-in racing of each new setting against the elites, dataset by dataset, with a paired
+    /// test (beyond the thesis; off when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub race: Option<crate::ga::racing::RaceRule>,
     /// After the last generation, re-score the hall of fame's top settings (and the thesis
     /// optimum) on fresh validation datasets; none when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -222,6 +226,15 @@ impl SearchSpec {
             ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
         }
         self.prune.validate()?;
+        if let Some(r) = &self.race {
+            r.validate(self.datasets)?;
+            ensure(
+                !self.prune.enabled,
+                "race",
+                r.test.name(),
+                "cannot be combined with prune.enabled (each stops settings its own way); turn one off",
+            )?;
+        }
         ensure(self.seeded.len() <= ga.population, "seeded", self.seeded.len(), "must not exceed ga.population")?;
         for (i, c) in self.seeded.iter().enumerate() {
             let b = self.genes.bounds();
@@ -480,14 +493,14 @@ impl Spec {
     }
 
     /// The hash of what decides a unit's numbers and nothing more: [`Self::results_hash`]'s
-    /// spec without the gene ranges, the GA's parameters, the seeded individuals, pruning and the
-    /// validation's size, which decide which units a search runs but not what any unit computes
+    /// spec without the gene ranges, the GA's parameters, the seeded individuals, pruning, racing
+    /// and the validation's size, which decide which units a search runs but not what any unit computes
     /// (units are named and seeded by their decoded setting). Two searches of equal units hash
     /// can share units (`search --units-from`): say, a population of 10 taking a population of 20's.
     pub fn units_hash(&self) -> String {
         let mut v = serde_json::to_value(self.for_results_hash()).expect("a spec serialises");
         if let Some(search) = v.get_mut("search").and_then(|s| s.as_object_mut()) {
-            for k in ["genes", "ga", "seeded", "prune", "validate"] {
+            for k in ["genes", "ga", "seeded", "prune", "race", "validate"] {
                 search.remove(k);
             }
         }

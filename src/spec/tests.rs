@@ -100,6 +100,7 @@ fn the_units_hash_leaves_out_what_decides_which_units_run_and_keeps_what_they_co
         with(&["search", "ga", "population"], 10.into()),
         with(&["search", "ga", "mutation"], 0.5.into()),
         with(&["search", "prune", "enabled"], true.into()),
+        with(&["search", "race"], serde_json::json!({"test": "wilcoxon", "confidence": 0.95, "first": 5})),
         with(&["search", "validate"], serde_json::json!({"top": 3, "datasets": 20})),
         with(&["search", "validate"], serde_json::Value::Null),
         with(&["search", "genes", "a_delta"], serde_json::json!([20, 99])),
@@ -117,5 +118,34 @@ fn the_units_hash_leaves_out_what_decides_which_units_run_and_keeps_what_they_co
         with(&["search", "network", "max_epochs"], 100.into()),
     ] {
         assert_ne!(other.units_hash(), spec.units_hash());
+    }
+}
+
+#[test]
+fn racing_is_checked_and_absent_from_the_thesis_specs() {
+    let origin = Path::new("my.json");
+    for (name, text) in BUILTIN {
+        let v = Spec::parse_value(text, origin).unwrap();
+        assert!(v["search"].get("race").is_none(), "{name}");
+        // Absent, it is not written back: a thesis spec's resolved JSON and hashes are unchanged.
+        let spec = Spec::from_value(v, origin).unwrap();
+        assert!(serde_json::to_value(&spec).unwrap()["search"].get("race").is_none());
+    }
+    let base = Spec::parse_value(BUILTIN[1].1, origin).unwrap();
+    let with = |race: serde_json::Value, prune: bool| {
+        let mut v = base.clone();
+        v["search"]["race"] = race;
+        v["search"]["prune"]["enabled"] = prune.into();
+        Spec::from_value(v, origin).map(|_| ()).map_err(|e| e.to_string())
+    };
+    assert!(with(serde_json::json!({"test": "t", "confidence": 0.9, "first": 2}), false).is_ok());
+    for (race, prune, field) in [
+        (serde_json::json!({"test": "wilcoxon", "confidence": 0.95, "first": 11}), false, "search.race.first"),
+        (serde_json::json!({"test": "wilcoxon", "confidence": 1.5, "first": 5}), false, "search.race.confidence"),
+        (serde_json::json!({"test": "wilcoxon", "confidence": 0.95, "first": 5}), true, "search.race"),
+        (serde_json::json!({"test": "sign", "confidence": 0.95, "first": 5}), false, "search.race.test"),
+    ] {
+        let e = with(race, prune).unwrap_err();
+        assert!(e.contains(field) && !e.contains('\n'), "{e}");
     }
 }

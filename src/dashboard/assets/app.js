@@ -208,7 +208,8 @@ function marker(f, p, x, y, fr, cls) {
   else if (p.activation === "relu") s = el("polygon", Object.assign({ points: x + "," + (y - 5) + " " + (x - 5) + "," + (y + 4) + " " + (x + 5) + "," + (y + 4) }, attrs), a);
   else s = el("circle", Object.assign({ cx: x, cy: y, r: 4.5 }, attrs), a);
   const t = el("title", {}, s);
-  const state = p.diverged ? "diverged" : p.pruned ? "pruned (partial " + fmt(p.partial) + ")" : "fitness " + fmt(p.fitness);
+  const state = p.diverged ? "diverged" : p.raced ? "raced out, " + p.raced + " (partial " + fmt(p.partial) + ")"
+    : p.pruned ? "pruned (partial " + fmt(p.partial) + ")" : "fitness " + fmt(p.fitness);
   t.textContent = p.id + "\n" + p.activation + " δ_min " + p.delta_min + " patience " + p.patience + "\n" + state + "\nfirst in generation " + p.first;
 }
 function fitnessRange(pts) {
@@ -218,7 +219,7 @@ function explorer(box, c) {
   const pts = c.points, fr = fitnessRange(pts);
   const sx = scale(box.id, "x", pts.map((p) => p.delta_min), "δ_min", true);
   const sy = scale(box.id, "y", pts.map((p) => p.patience), "patience", false, true);
-  const f = frame(box, "Population: " + pts.length + " settings (○ sigmoid □ tanh △ relu; grey pruned, red diverged)",
+  const f = frame(box, "Population: " + pts.length + " settings (○ sigmoid □ tanh △ relu; grey pruned or raced out, red diverged)",
     extent(pts.map((p) => sx.f(p.delta_min))), extent(pts.map((p) => sy.f(p.patience))), sx.label, sy.label, sx.kind, 70, sy.kind);
   pts.forEach((p) => marker(f, p, f.sx(sx.f(p.delta_min)), f.sy(sy.f(p.patience)), fr, "pt"));
   colourBar(f, fr);
