@@ -520,6 +520,30 @@ impl GymConfig {
         }
     }
 
+    /// Refuses a recorded `env.probed` that is not what the env's worker reports now (`got`): one
+    /// copied from another env's spec, or recorded before gymnasium changed. Errors name the field
+    /// without the `env.` prefix, which the caller adds.
+    pub fn check_recorded(&self, recorded: &Probed, got: &Probed) -> Result<()> {
+        let show = |p: &Probed| {
+            format!(
+                "observation {}, action {}, time limit {}",
+                p.observation.describe(),
+                p.action.describe(),
+                limit(p.max_episode_steps)
+            )
+        };
+        ensure(
+            recorded == got,
+            "probed",
+            show(recorded),
+            &format!(
+                "is not what {}'s worker reports ({}): copied from another env's spec, or recorded before gymnasium or the env changed; remove env.probed, it is filled in when the spec is read",
+                self.id,
+                show(got)
+            ),
+        )
+    }
+
     /// Clears the settings that decide no result (the Python, the timeout), for results hashes.
     pub fn for_hash(&mut self) {
         self.python = None;
