@@ -95,9 +95,10 @@ def read_frame(stream):
 
 def write_frame(stream, header, arrays=()):
     """Writes one frame: header (a dict) and arrays, a sequence of (name, numpy array)."""
-    import numpy as np
-
     parts, listed = [], []
+    if arrays:
+        # Only frames with arrays need numpy: the frame that reports a failed `import numpy` has none.
+        import numpy as np
     for name, a in arrays:
         a = np.ascontiguousarray(a)
         a = a.astype(a.dtype.newbyteorder("<"), copy=False)

@@ -71,16 +71,24 @@ fn setup_problems_are_refused_before_anything_runs() {
 }
 
 #[test]
-fn a_python_without_gymnasium_is_named_with_the_install_command() {
+fn a_python_without_gymnasium_or_numpy_is_named_with_the_install_command() {
     let Some(py) = python() else { return };
-    let d = empty_dir("gymfail", "noimport");
-    // A package that shadows gymnasium and fails to import, as a Python without it does.
-    let shadow = d.join("shadow/gymnasium");
+    for module in ["gymnasium", "numpy"] {
+        let d = empty_dir("gymfail", &format!("no-{module}"));
+        without(&py, &d, module);
+    }
+}
+
+/// `module` shadowed by a package that fails to import, as a Python without it does; the worker
+/// still reports it (the frame saying so needs no numpy) and the tool prints the install line.
+fn without(py: &str, d: &TempDir, module: &str) {
+    let shadow = d.join(format!("shadow/{module}"));
     std::fs::create_dir_all(&shadow).unwrap();
-    std::fs::write(shadow.join("__init__.py"), "raise ModuleNotFoundError(\"No module named 'gymnasium'\")\n").unwrap();
-    let s = spec(&d, "cp", json!({"id": "CartPole-v1"}));
+    std::fs::write(shadow.join("__init__.py"), format!("raise ModuleNotFoundError(\"No module named '{module}'\")\n"))
+        .unwrap();
+    let s = spec(d, "cp", json!({"id": "CartPole-v1"}));
     let o = common::bin()
-        .env("BFQI_PYTHON", &py)
+        .env("BFQI_PYTHON", py)
         .env("PYTHONPATH", d.join("shadow"))
         .arg("dataset")
         .arg(&s)
@@ -91,7 +99,8 @@ fn a_python_without_gymnasium_is_named_with_the_install_command() {
     let err = String::from_utf8_lossy(&o.stderr).trim().to_string();
     assert_eq!(o.status.code(), Some(2), "{err}");
     one_line(&err);
-    assert!(err.contains("cannot import gymnasium") && err.contains("-m pip install gymnasium"), "{err}");
+    assert!(err.contains("cannot import gymnasium") && err.contains("-m pip install gymnasium numpy"), "{err}");
+    assert!(err.contains(&format!("No module named '{module}'")), "{err}");
 }
 
 #[test]

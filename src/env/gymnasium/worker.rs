@@ -194,7 +194,9 @@ fn start(cfg: &GymConfig, render: bool) -> Result<Proc> {
             Error::invalid(
                 "env.python",
                 &python,
-                format!("cannot import gymnasium for env {id} ({err}); install it: {python} -m pip install gymnasium"),
+                format!(
+                    "cannot import gymnasium for env {id} ({err}); install it: {python} -m pip install gymnasium numpy"
+                ),
             )
         } else {
             failed(&p, cfg, &format!("its start failed: {err}"))
