@@ -353,8 +353,19 @@ def main():
         return 3
     v = sys.version_info
     write_frame(out, {"ok": True, "op": "hello", "protocol": PROTOCOL, "python": f"{v.major}.{v.minor}.{v.micro}",
-                      "gymnasium": gymnasium.__version__, "numpy": numpy.__version__})
+                      "gymnasium": gymnasium.__version__, "numpy": numpy.__version__, "minari": minari_version()})
     return serve(inp, out)
+
+
+def minari_version():
+    """Minari's version when it is installed, else None: read from its metadata, since importing
+    it would cost every worker's start."""
+    try:
+        from importlib import metadata
+
+        return metadata.version("minari")
+    except Exception:  # noqa: BLE001 - not installed, or no metadata: recorded as absent
+        return None
 
 
 if __name__ == "__main__":

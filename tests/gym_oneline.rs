@@ -94,8 +94,27 @@ fn one_line_envs_work_in_dataset_run_search_and_compare_without_thesis_verdicts(
     ok(&gym_bin(&py).args(run).args(["--episodes", "10"]).output().unwrap());
     let out = d.join("search");
     ok(&gym_bin(&py).arg("search").arg(env).args(tiny_with(&[])).arg("--out").arg(&out).output().unwrap());
-    let run_json: Value = serde_json::from_str(&read(out.join("run.json"))).unwrap();
+    let mut run_json: Value = serde_json::from_str(&read(out.join("run.json"))).unwrap();
     assert_eq!(run_json["spec_source"], env);
+    // run.json records the Python stack, and `reproduce` names a difference in it when the scores
+    // disagree (here a score edited, and numpy's version as if recorded elsewhere).
+    let stack = run_json["gymnasium"].clone();
+    for k in ["python", "gymnasium", "numpy"] {
+        assert!(stack[k].as_str().is_some_and(|v| !v.is_empty()), "{k}: {run_json}");
+    }
+    run_json["gymnasium"]["numpy"] = json!("0.0.1");
+    let mut best: Value = serde_json::from_str(&read(out.join("best.json"))).unwrap();
+    let first = best["scores"][0].as_f64().unwrap();
+    best["scores"][0] = json!(first + 1.0);
+    let edited = d.join("edited");
+    std::fs::create_dir_all(&edited).unwrap();
+    std::fs::write(edited.join("best.json"), best.to_string()).unwrap();
+    std::fs::write(edited.join("run.json"), run_json.to_string()).unwrap();
+    let o = gym_bin(&py).arg("reproduce").arg(edited.join("best.json")).output().unwrap();
+    let said = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    let now = stack["numpy"].as_str().unwrap();
+    assert!(said.contains(&format!("numpy 0.0.1 when recorded, {now} now")), "{said}");
     let cmp = d.join("cmp");
     let o = gym_bin(&py)
         .args(["compare", env, "--learner", "et", "--analysis", "iterations"])

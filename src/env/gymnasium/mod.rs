@@ -17,6 +17,7 @@ mod wire;
 mod worker;
 
 pub use episodes::{BridgeStats, Image, LockStep, RawEpisode, Stepped, collect, stats};
+pub use worker::Versions;
 
 use super::{Env, EvalConfig, Outcome, ScoreKind};
 use crate::error::{Error, Result, ensure};
@@ -312,6 +313,12 @@ impl GymConfig {
     /// Values per observation.
     pub fn obs_len(&self) -> usize {
         self.probed.as_ref().map_or(0, |p| p.observation.dim())
+    }
+
+    /// The Python, gymnasium, numpy and minari versions its worker runs (starting one if none is
+    /// open), for run records.
+    pub fn versions(&self) -> Result<Versions> {
+        worker::versions(self)
     }
 
     /// Asks a worker for the env's spaces when the settings do not hold them yet (the first time
