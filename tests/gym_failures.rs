@@ -177,4 +177,21 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(whole.join(f)), read(crashed.join(f)), "{f}: crashed and resumed vs whole");
     }
+
+    // A worker that dies while the first dataset is collected, before any unit or state.json:
+    // state.json records the failure, `status` shows it, and a resume starts the search.
+    std::fs::write(&flag, "").unwrap();
+    let first = d.join("first");
+    let o = run(&first);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    let state: Value = serde_json::from_str(&read(first.join("state.json"))).unwrap();
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().is_some_and(|r| r.contains("exited") && r.contains("dataset")), "{state}");
+    let st = gym_bin(&py).arg("status").arg(&first).output().unwrap();
+    let shown = String::from_utf8_lossy(&st.stdout);
+    assert!(shown.contains("failed") && shown.contains("exited") && !shown.contains("not started"), "{shown}");
+    std::fs::remove_file(&flag).unwrap();
+    let r = gym_bin(&py).args(["search", "--resume"]).arg(&first).arg("--quiet").output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(read(whole.join("best.json")), read(first.join("best.json")), "failed first, resumed vs whole");
 }
