@@ -91,7 +91,21 @@ fn one_line_envs_work_in_dataset_run_search_and_compare_without_thesis_verdicts(
     ok(&gym_bin(&py).args(["dataset", env, "--episodes", "3", "--out"]).arg(&csv).output().unwrap());
     assert!(read(&csv).lines().count() > 3);
     let run = ["run", env, "--algo", "bfqi", "--learner", "et", "--iterations", "2", "--datasets", "1"];
-    ok(&gym_bin(&py).args(run).args(["--episodes", "10"]).output().unwrap());
+    let models = d.join("models");
+    ok(&gym_bin(&py).args(run).args(["--episodes", "10", "--save-model"]).arg(&models).output().unwrap());
+    // `evaluate --seed` scores the policy on fresh episodes; without it, on its evaluation's.
+    let evaluate = |extra: &[&str]| -> Value {
+        let m = models.join("dataset-0.model");
+        let o = gym_bin(&py).arg("evaluate").arg(&m).args(["--episodes", "5", "--json"]).args(extra).output().unwrap();
+        ok(&o);
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let own = evaluate(&[]);
+    let eval_seed = own["info"]["eval_seed"].to_string();
+    assert_eq!(evaluate(&["--seed", &eval_seed])["result"], own["result"]);
+    let fresh = evaluate(&["--seed", "7"]);
+    assert_eq!(fresh["seed"], 7);
+    assert_ne!(fresh["result"], own["result"], "other starts, another score");
     let out = d.join("search");
     ok(&gym_bin(&py).arg("search").arg(env).args(tiny_with(&[])).arg("--out").arg(&out).output().unwrap());
     let mut run_json: Value = serde_json::from_str(&read(out.join("run.json"))).unwrap();
