@@ -195,3 +195,28 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert_eq!(read(whole.join("best.json")), read(first.join("best.json")), "failed first, resumed vs whole");
 }
+
+#[test]
+fn a_rollout_whose_render_fails_keeps_its_trajectory_and_plots() {
+    let Some(py) = python() else { return };
+    let d = empty_dir("gymfail", "render");
+    // Cart-pole that offers rgb_array rendering, but whose render() raises.
+    let env = "gymnasium:bfqi_gym_testenvs:BfqiNoRender-v0";
+    let models = d.join("models");
+    let run = ["run", env, "--algo", "fqi", "--learner", "et", "--iterations", "2", "--datasets", "1"];
+    let o = gym_bin(&py).args(run).args(["--episodes", "10", "--save-model"]).arg(&models).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = d.join("rollout");
+    let o = gym_bin(&py)
+        .arg("rollout")
+        .arg(models.join("dataset-0.model"))
+        .args(["--episodes", "2", "--draw", "1", "--frames", "5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("no display for render()") && err.contains("without frames"), "{err}");
+    assert!(read(out.join("trajectory.csv")).lines().count() > 2);
+    assert!(out.join("episode-0.png").is_file() && !out.join("episode-0.gif").exists());
+}
