@@ -70,6 +70,16 @@ for _name, _cls in [("Hang", "HangEnv"), ("Crash", "CrashEnv"), ("Nan", "NanEnv"
     register(id=f"Bfqi{_name}-v0", entry_point=f"bfqi_gym_testenvs:{_cls}", max_episode_steps=500)
 
 
+class NoRenderEnv(CartPoleEnv):
+    """Cart-pole that offers rgb_array rendering but whose render() fails, as one without pygame."""
+
+    def render(self):
+        raise RuntimeError("no display for render()")
+
+
+register(id="BfqiNoRender-v0", entry_point="bfqi_gym_testenvs:NoRenderEnv", max_episode_steps=500)
+
+
 class StateObs(gym.Wrapper):
     """The inner env's internal state, then its own observation, as one float64 observation."""
 

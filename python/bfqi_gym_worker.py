@@ -95,9 +95,10 @@ def read_frame(stream):
 
 def write_frame(stream, header, arrays=()):
     """Writes one frame: header (a dict) and arrays, a sequence of (name, numpy array)."""
-    import numpy as np
-
     parts, listed = [], []
+    if arrays:
+        # Only frames with arrays need numpy: the frame that reports a failed `import numpy` has none.
+        import numpy as np
     for name, a in arrays:
         a = np.ascontiguousarray(a)
         a = a.astype(a.dtype.newbyteorder("<"), copy=False)
@@ -352,8 +353,19 @@ def main():
         return 3
     v = sys.version_info
     write_frame(out, {"ok": True, "op": "hello", "protocol": PROTOCOL, "python": f"{v.major}.{v.minor}.{v.micro}",
-                      "gymnasium": gymnasium.__version__, "numpy": numpy.__version__})
+                      "gymnasium": gymnasium.__version__, "numpy": numpy.__version__, "minari": minari_version()})
     return serve(inp, out)
+
+
+def minari_version():
+    """Minari's version when it is installed, else None: read from its metadata, since importing
+    it would cost every worker's start."""
+    try:
+        from importlib import metadata
+
+        return metadata.version("minari")
+    except Exception:  # noqa: BLE001 - not installed, or no metadata: recorded as absent
+        return None
 
 
 if __name__ == "__main__":

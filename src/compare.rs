@@ -302,12 +302,16 @@ pub fn resolve(spec_name: &str, r: &Request) -> Result<(CompareConfig, serde_jso
     let env = spec.env.env().name().to_string();
     let (tuned_cfg, tuned_from) = TunedConfig::resolve(&r.tuned, &env)?;
     let cfg = CompareConfig::new(&spec, tuned_cfg, r.analysis.analyses(), &r.learner.learners(), r)?;
-    let info = serde_json::json!({
+    let mut info = serde_json::json!({
         "kind": "compare", "env": env, "spec_source": origin.display().to_string(),
         "tuned_source": tuned_from.display().to_string(), "analysis": r.analysis, "learner": r.learner,
         "created": store::now_utc().1, "version": env!("CARGO_PKG_VERSION"), "commit": env!("BFQI_GA_COMMIT"),
         "config_hash": cfg.results_hash(), "checksummed": true, "machine": crate::machine::Machine::this(),
     });
+    // A gymnasium env's results hold only under the same Python stack: record it.
+    if let Some(g) = spec.env.env().gymnasium() {
+        info["gymnasium"] = serde_json::to_value(g.versions()?).expect("versions serialise");
+    }
     Ok((cfg, info))
 }
 

@@ -115,15 +115,32 @@ pub fn run(
             }
         };
         let draw = draw.filter(|_| record && g.probed.as_ref().is_some_and(|p| p.rgb_array));
-        let chunks: Vec<usize> = (0..episodes.div_ceil(GYM_SLOTS)).collect();
-        let parts = chunks
-            .into_par_iter()
-            .map(|c| {
-                let lo = c * GYM_SLOTS;
-                gym_chunk(g, q, eval_seed, lo..(lo + GYM_SLOTS).min(episodes), opts, steps, record, draw)
-            })
-            .collect::<Result<Vec<_>>>()?;
-        return Ok(parts.into_iter().flatten().collect());
+        let go = |draw: Option<Draw>| -> Result<Vec<_>> {
+            let chunks: Vec<usize> = (0..episodes.div_ceil(GYM_SLOTS)).collect();
+            let parts = chunks
+                .into_par_iter()
+                .map(|c| {
+                    let lo = c * GYM_SLOTS;
+                    gym_chunk(g, q, eval_seed, lo..(lo + GYM_SLOTS).min(episodes), opts, steps, record, draw)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Ok(parts.into_iter().flatten().collect())
+        };
+        // Frames are an extra: an env whose render() fails (a missing pygame, a broken display)
+        // still gets its trajectory and plots. Its episodes are the same without rendering (same
+        // reset seeds, same greedy actions), so they are run again without frames; a failure that
+        // was not the rendering's fails that run too, and is reported as it is.
+        return match go(draw) {
+            Err(e) if draw.is_some() => {
+                eprintln!(
+                    "warning: {}: the rollout failed while drawing frames ({e}); running it again without \
+                     frames, to keep its trajectory and plots",
+                    g.id
+                );
+                go(None)
+            }
+            r => r,
+        };
     }
     Ok((0..episodes).into_par_iter().map(|e| one(env_cfg, q, eval_seed, e, start, steps, record)).collect())
 }

@@ -177,8 +177,13 @@ fn a_tiny_time_budget_is_printed_short() {
 
 #[test]
 fn a_gymnasium_action_is_named_as_written_not_as_rust_debugs_it() {
+    // A spec given by the user is probed when read (a stale `env.probed` is refused), so this needs
+    // a Python with gymnasium.
+    // (`fails` runs the binary with this process's environment, so with the same Python.)
+    if common::gym::python().is_none() {
+        return;
+    }
     let d = empty_dir("msg", "gym-action");
-    // A run's spec.json records the env's spaces (`env.probed`), so no Python is needed to check it.
     let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/searches/cartpole-v1/spec.json");
     let mut spec: serde_json::Value = serde_json::from_str(&read(&committed)).unwrap();
     spec["env"]["actions"] = serde_json::json!([0, 5]);

@@ -71,16 +71,24 @@ fn setup_problems_are_refused_before_anything_runs() {
 }
 
 #[test]
-fn a_python_without_gymnasium_is_named_with_the_install_command() {
+fn a_python_without_gymnasium_or_numpy_is_named_with_the_install_command() {
     let Some(py) = python() else { return };
-    let d = empty_dir("gymfail", "noimport");
-    // A package that shadows gymnasium and fails to import, as a Python without it does.
-    let shadow = d.join("shadow/gymnasium");
+    for module in ["gymnasium", "numpy"] {
+        let d = empty_dir("gymfail", &format!("no-{module}"));
+        without(&py, &d, module);
+    }
+}
+
+/// `module` shadowed by a package that fails to import, as a Python without it does; the worker
+/// still reports it (the frame saying so needs no numpy) and the tool prints the install line.
+fn without(py: &str, d: &TempDir, module: &str) {
+    let shadow = d.join(format!("shadow/{module}"));
     std::fs::create_dir_all(&shadow).unwrap();
-    std::fs::write(shadow.join("__init__.py"), "raise ModuleNotFoundError(\"No module named 'gymnasium'\")\n").unwrap();
-    let s = spec(&d, "cp", json!({"id": "CartPole-v1"}));
+    std::fs::write(shadow.join("__init__.py"), format!("raise ModuleNotFoundError(\"No module named '{module}'\")\n"))
+        .unwrap();
+    let s = spec(d, "cp", json!({"id": "CartPole-v1"}));
     let o = common::bin()
-        .env("BFQI_PYTHON", &py)
+        .env("BFQI_PYTHON", py)
         .env("PYTHONPATH", d.join("shadow"))
         .arg("dataset")
         .arg(&s)
@@ -91,7 +99,8 @@ fn a_python_without_gymnasium_is_named_with_the_install_command() {
     let err = String::from_utf8_lossy(&o.stderr).trim().to_string();
     assert_eq!(o.status.code(), Some(2), "{err}");
     one_line(&err);
-    assert!(err.contains("cannot import gymnasium") && err.contains("-m pip install gymnasium"), "{err}");
+    assert!(err.contains("cannot import gymnasium") && err.contains("-m pip install gymnasium numpy"), "{err}");
+    assert!(err.contains(&format!("No module named '{module}'")), "{err}");
 }
 
 #[test]
@@ -168,4 +177,46 @@ fn a_search_whose_worker_crashes_keeps_its_units_and_resumes_to_the_uninterrupte
     for f in ["generations.jsonl", "best.json", "hall_of_fame.json"] {
         assert_eq!(read(whole.join(f)), read(crashed.join(f)), "{f}: crashed and resumed vs whole");
     }
+
+    // A worker that dies while the first dataset is collected, before any unit or state.json:
+    // state.json records the failure, `status` shows it, and a resume starts the search.
+    std::fs::write(&flag, "").unwrap();
+    let first = d.join("first");
+    let o = run(&first);
+    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stderr));
+    let state: Value = serde_json::from_str(&read(first.join("state.json"))).unwrap();
+    assert_eq!(state["state"], "failed", "{state}");
+    assert!(state["reason"].as_str().is_some_and(|r| r.contains("exited") && r.contains("dataset")), "{state}");
+    let st = gym_bin(&py).arg("status").arg(&first).output().unwrap();
+    let shown = String::from_utf8_lossy(&st.stdout);
+    assert!(shown.contains("failed") && shown.contains("exited") && !shown.contains("not started"), "{shown}");
+    std::fs::remove_file(&flag).unwrap();
+    let r = gym_bin(&py).args(["search", "--resume"]).arg(&first).arg("--quiet").output().unwrap();
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert_eq!(read(whole.join("best.json")), read(first.join("best.json")), "failed first, resumed vs whole");
+}
+
+#[test]
+fn a_rollout_whose_render_fails_keeps_its_trajectory_and_plots() {
+    let Some(py) = python() else { return };
+    let d = empty_dir("gymfail", "render");
+    // Cart-pole that offers rgb_array rendering, but whose render() raises.
+    let env = "gymnasium:bfqi_gym_testenvs:BfqiNoRender-v0";
+    let models = d.join("models");
+    let run = ["run", env, "--algo", "fqi", "--learner", "et", "--iterations", "2", "--datasets", "1"];
+    let o = gym_bin(&py).args(run).args(["--episodes", "10", "--save-model"]).arg(&models).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = d.join("rollout");
+    let o = gym_bin(&py)
+        .arg("rollout")
+        .arg(models.join("dataset-0.model"))
+        .args(["--episodes", "2", "--draw", "1", "--frames", "5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("no display for render()") && err.contains("without frames"), "{err}");
+    assert!(read(out.join("trajectory.csv")).lines().count() > 2);
+    assert!(out.join("episode-0.png").is_file() && !out.join("episode-0.gif").exists());
 }

@@ -224,6 +224,9 @@ pub(super) fn compare(a: CompareArgs) -> Result<Outcome> {
         return Ok(outcome(&ending, &format!("bfqi-ga compare --resume {}", dir.display())));
     }
     let out = crate::report::comparison::regenerate(&dir)?;
+    if compare::load(&dir)?.learners.iter().all(|p| p.claims.is_empty()) {
+        eprintln!("no thesis claims: this spec states none, so the report compares B-FQI with FQI without verdicts");
+    }
     for c in &out.claims {
         let mark = if c.verdict == crate::report::claims::Verdict::Supported { "supported" } else { "NOT supported" };
         eprintln!("claim {mark}: {} ({})", c.statement, c.evidence);

@@ -84,6 +84,10 @@ pub struct EvaluateArgs {
     /// Steps per episode (default: the evaluation protocol's).
     #[arg(long)]
     pub steps: Option<usize>,
+    /// Seed of the episodes' starts (and a gymnasium env's resets): fresh episodes, not the ones
+    /// the model was scored on (default: the model's evaluation seed, those episodes).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Print one JSON document instead of the text.
     #[arg(long)]
     pub json: bool,
@@ -247,18 +251,21 @@ pub(super) fn evaluate(a: EvaluateArgs) -> Result<Outcome> {
     let steps = a.steps.unwrap_or(m.info.env.env().eval().steps);
     anyhow::ensure!((1..=ms).contains(&steps), "invalid --steps = {steps}: must be in 1..={ms}");
     let q = |o: &[f64], q: &mut [f64]| m.q(o, q);
-    let eps = crate::rollout::run(&m.info.env, &q, m.info.eval_seed, a.episodes, a.start, steps, false, None)?;
+    // The episodes' streams are seeded by this seed as an evaluation's are by its seed E.
+    let seed = a.seed.unwrap_or(m.info.eval_seed);
+    let eps = crate::rollout::run(&m.info.env, &q, seed, a.episodes, a.start, steps, false, None)?;
     let eps: Vec<crate::eval::Episode> = eps.into_iter().map(|(e, _)| e).collect();
     let r = crate::rollout::robustness(a.start, &eps).expect("at least one episode");
     if a.json {
-        let doc =
-            serde_json::json!({ "model": a.model.display().to_string(), "info": m.info, "steps": steps, "result": r });
+        let doc = serde_json::json!({ "model": a.model.display().to_string(), "info": m.info, "seed": seed, "steps": steps, "result": r });
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(Outcome::Success);
     }
     println!("{}", crate::rollout::describe_model(&m.info, &a.model));
+    let episodes =
+        if seed == m.info.eval_seed { "its evaluation's episodes".to_string() } else { format!("seed {seed}") };
     println!(
-        "{} episodes from {} starts, ≤ {steps} steps: score {}, steps {}, failures {}/{}",
+        "{} episodes from {} starts ({episodes}), ≤ {steps} steps: score {}, steps {}, failures {}/{}",
         r.episodes,
         serde_json::to_value(a.start)?.as_str().unwrap_or("?"),
         crate::stats::interval(Some(r.score), 4),

@@ -185,8 +185,8 @@ impl EnvConfig {
             "cartpole" => Ok(EnvConfig::Cartpole(CartPoleConfig::default())),
             "bicycle" => Ok(EnvConfig::Bicycle(BicycleConfig::default())),
             "gymnasium" => Err(Error::Usage(
-                "a gymnasium env is named in a spec file: \"env\": {\"name\": \"gymnasium\", \"id\": \"CartPole-v1\", …} \
-                 (see the README's Gymnasium section); give the spec file's path"
+                "name a gymnasium env as gymnasium:<id> (e.g. gymnasium:CartPole-v1), or in a spec file: \"env\": \
+                 {\"name\": \"gymnasium\", \"id\": \"CartPole-v1\", …} (see the README's Gymnasium section)"
                     .into(),
             )),
             _ => Err(Error::UnknownEnv { name: name.to_string(), valid: NAMES.join(", ") }),

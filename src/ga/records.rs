@@ -48,6 +48,10 @@ pub struct RunInfo {
     /// recorded): its wall times are that machine's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub machine: Option<Machine>,
+    /// A gymnasium env's Python stack (Python, gymnasium, numpy, minari) when the run was
+    /// created: its results are bit-identical only under the same versions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gymnasium: Option<crate::env::gymnasium::Versions>,
 }
 
 /// Units a search took from another run's cache (`search --units-from`), in `run.json`.

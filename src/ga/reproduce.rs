@@ -130,13 +130,43 @@ pub fn reproduce(t: &TunedConfig, path: &Path, validation: bool) -> Result<Repro
             .map(|(d, s)| (d, stored.get(d).copied().flatten(), *s))
             .collect()
     };
+    let differences = differing(&t.scores, scores);
+    let validation_differences = checked.map_or(Vec::new(), |v| differing(&v.scores, validation_scores));
+    if !(differences.is_empty() && validation_differences.is_empty()) {
+        mismatches.extend(stack_differences(spec, path)?);
+    }
     Ok(Reproduction {
         recorded: t.fitness,
         derived: finite(fitness(scores)),
-        differences: differing(&t.scores, scores),
+        differences,
         mismatches,
         validation_datasets: checked.map(|_| n_validation),
-        validation_differences: checked.map_or(Vec::new(), |v| differing(&v.scores, validation_scores)),
+        validation_differences,
+    })
+}
+
+/// For a gymnasium env whose scores disagree: how the Python stack recorded in the `run.json`
+/// beside the best.json differs from the one that ran now (a different gymnasium or numpy is the
+/// likely cause), or that none was recorded.
+fn stack_differences(spec: &crate::spec::Spec, best: &Path) -> Result<Vec<String>> {
+    let Some(g) = spec.env.env().gymnasium() else { return Ok(Vec::new()) };
+    let run = best.parent().unwrap_or(Path::new(".")).join("run.json");
+    let recorded = std::fs::read_to_string(&run)
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| serde_json::from_value::<crate::env::gymnasium::Versions>(v.get("gymnasium")?.clone()).ok());
+    let Some(recorded) = recorded else {
+        return Ok(vec![format!(
+            "versions: {} records no Python stack, so whether gymnasium or numpy differ is unknown",
+            run.display()
+        )]);
+    };
+    let now = g.versions()?;
+    let d = recorded.differences(&now);
+    Ok(if d.is_empty() {
+        vec![format!("versions: the same as {} records (Python, gymnasium, numpy, minari)", run.display())]
+    } else {
+        d.into_iter().map(|x| format!("versions: {x} ({})", run.display())).collect()
     })
 }
 

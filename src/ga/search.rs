@@ -143,17 +143,37 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
         // Every setting having diverged is the search's result, which a resume would only replay.
         let reason =
             if matches!(e, Error::Failed(_)) { text } else { format!("{text} (resume it once that is fixed)") };
-        mark_failed(dir, &reason)
+        mark_failed(dir, &reason, spec.search.stop.generations)
     })?;
     drop(lock);
     Ok(ending)
 }
 
 /// Records in `state.json` that the run failed and why; a failure to write it (the disk that
-/// failed the run) leaves the error being reported as the one the user sees.
-fn mark_failed(dir: &Path, reason: &str) {
+/// failed the run) leaves the error being reported as the one the user sees. A run that failed
+/// before its first `state.json` (a gymnasium worker that died collecting the first dataset) gets
+/// one, so `status` shows the failure rather than `not started`.
+fn mark_failed(dir: &Path, reason: &str, generations: usize) {
     let path = dir.join("state.json");
-    if let Ok(mut state) = read_json::<RunState>(&path) {
+    let state = match read_json::<RunState>(&path) {
+        Ok(state) => Some(state),
+        Err(_) if !path.exists() => Some(RunState {
+            state: Phase::Failed,
+            generation: 0,
+            generations,
+            best_fitness: None,
+            best: None,
+            reason: String::new(),
+            updated: String::new(),
+            generation_seconds: Vec::new(),
+            current_seconds: 0.0,
+            units_done: 0,
+            units_total: 0,
+            eta_seconds: None,
+        }),
+        Err(_) => None,
+    };
+    if let Some(mut state) = state {
         state.state = Phase::Failed;
         state.reason = reason.to_string();
         state.eta_seconds = None;

@@ -287,6 +287,7 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         checksummed: true,
         units_from: Vec::new(),
         machine: Some(crate::machine::Machine::this()),
+        gymnasium: spec.env.env().gymnasium().map(|g| g.versions()).transpose()?,
     };
     Ok((spec, info))
 }

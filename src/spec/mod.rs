@@ -465,7 +465,13 @@ impl Spec {
 
     /// The JSON text of `bicycle` (→ `searches/bicycle.json` or the built-in copy) or of a file,
     /// with its origin; for callers that patch it before validating.
+    /// `gymnasium:<id>`, and a gymnasium spec file that leaves out `seed`, `experiments` or
+    /// `search`, are completed from the template `searches/gymnasium/defaults.json`; a
+    /// gymnasium env is probed (see [`template`]).
     pub fn resolve_value(name_or_path: &str) -> Result<(serde_json::Value, PathBuf)> {
+        if let Some(named) = template::from_name(name_or_path) {
+            return named;
+        }
         if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
             let local = PathBuf::from(format!("searches/{name}.json"));
             if store::something_at(&local) {
@@ -478,11 +484,14 @@ impl Spec {
         let path = PathBuf::from(name_or_path);
         if store::something_at(&path) {
             let t = store::read_input(&path)?;
-            return Ok((Self::parse_value(&t, &path)?, path));
+            return Ok((template::complete(Self::parse_value(&t, &path)?, &path)?, path));
         }
         Err(Error::UnknownEnv {
             name: name_or_path.to_string(),
-            valid: format!("{} (or the path of a spec file)", crate::env::NAMES.join(", ")),
+            valid: format!(
+                "{}, gymnasium:<id> (any gymnasium env, e.g. gymnasium:Acrobot-v1) or the path of a spec file",
+                crate::env::NAMES.join(", ")
+            ),
         })
     }
 
@@ -581,6 +590,7 @@ fn file_error(path: &Path, message: String) -> Error {
 
 mod checks;
 pub(crate) use checks::holdout;
+pub mod template;
 
 #[cfg(test)]
 mod tests;

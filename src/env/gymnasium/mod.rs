@@ -17,6 +17,7 @@ mod wire;
 mod worker;
 
 pub use episodes::{BridgeStats, Image, LockStep, RawEpisode, Stepped, collect, stats};
+pub use worker::Versions;
 
 use super::{Env, EvalConfig, Outcome, ScoreKind};
 use crate::error::{Error, Result, ensure};
@@ -314,6 +315,12 @@ impl GymConfig {
         self.probed.as_ref().map_or(0, |p| p.observation.dim())
     }
 
+    /// The Python, gymnasium, numpy and minari versions its worker runs (starting one if none is
+    /// open), for run records.
+    pub fn versions(&self) -> Result<Versions> {
+        worker::versions(self)
+    }
+
     /// Asks a worker for the env's spaces when the settings do not hold them yet (the first time
     /// a spec is read). Errors name their field in full (`env.python`).
     pub fn resolve(&mut self) -> Result<()> {
@@ -518,6 +525,30 @@ impl GymConfig {
             ))),
             _ => Ok(()),
         }
+    }
+
+    /// Refuses a recorded `env.probed` that is not what the env's worker reports now (`got`): one
+    /// copied from another env's spec, or recorded before gymnasium changed. Errors name the field
+    /// without the `env.` prefix, which the caller adds.
+    pub fn check_recorded(&self, recorded: &Probed, got: &Probed) -> Result<()> {
+        let show = |p: &Probed| {
+            format!(
+                "observation {}, action {}, time limit {}",
+                p.observation.describe(),
+                p.action.describe(),
+                limit(p.max_episode_steps)
+            )
+        };
+        ensure(
+            recorded == got,
+            "probed",
+            show(recorded),
+            &format!(
+                "is not what {}'s worker reports ({}): copied from another env's spec, or recorded before gymnasium or the env changed; remove env.probed, it is filled in when the spec is read",
+                self.id,
+                show(got)
+            ),
+        )
     }
 
     /// Clears the settings that decide no result (the Python, the timeout), for results hashes.

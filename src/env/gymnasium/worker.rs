@@ -10,6 +10,7 @@
 use super::wire::{Frame, PROTOCOL};
 use super::{GymConfig, Probed, Space};
 use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::collections::{HashMap, VecDeque};
 use std::io::{BufRead, BufReader};
@@ -34,6 +35,8 @@ pub(super) struct Proc {
     python: String,
     /// What the worker reported of the env.
     pub(super) probed: Probed,
+    /// The versions its hello named.
+    versions: Versions,
 }
 
 impl Drop for Proc {
@@ -95,6 +98,11 @@ impl<'a> Session<'a> {
         };
         cfg.check_same(&proc.probed)?;
         Ok(Session { cfg, key, proc: Some(proc) })
+    }
+
+    /// The Python, gymnasium, numpy and minari versions the worker runs.
+    pub(super) fn versions(&self) -> &Versions {
+        &self.proc.as_ref().expect("a checked-out worker").versions
     }
 
     /// What the worker reported of the env.
@@ -175,7 +183,8 @@ fn start(cfg: &GymConfig, render: bool) -> Result<Proc> {
         dt: None,
         rgb_array: false,
     };
-    let mut p = Proc { child, to, from, tail, python: python.clone(), probed: placeholder };
+    let versions = Versions::default();
+    let mut p = Proc { child, to, from, tail, python: python.clone(), probed: placeholder, versions };
     // A program that starts but is no Python running the worker (`/bin/false`) is env.python's
     // fault, as one that cannot be started is.
     let hello = receive(&mut p, cfg, "its start").map_err(|e| {
@@ -194,12 +203,21 @@ fn start(cfg: &GymConfig, render: bool) -> Result<Proc> {
             Error::invalid(
                 "env.python",
                 &python,
-                format!("cannot import gymnasium for env {id} ({err}); install it: {python} -m pip install gymnasium"),
+                format!(
+                    "cannot import gymnasium for env {id} ({err}); install it: {python} -m pip install gymnasium numpy"
+                ),
             )
         } else {
             failed(&p, cfg, &format!("its start failed: {err}"))
         });
     }
+    let named = |k: &str| hello.header.get(k).and_then(Value::as_str).map(String::from);
+    p.versions = Versions {
+        python: named("python").unwrap_or_default(),
+        gymnasium: named("gymnasium").unwrap_or_default(),
+        numpy: named("numpy").unwrap_or_default(),
+        minari: named("minari"),
+    };
     let protocol = hello.header.get("protocol").and_then(Value::as_u64);
     if protocol != Some(PROTOCOL) {
         let theirs = protocol.map_or("none".to_string(), |v| v.to_string());
@@ -233,6 +251,43 @@ fn probed_of(reply: &Frame) -> Option<Probed> {
         dt: h.get("dt").and_then(Value::as_f64),
         rgb_array: modes.is_some_and(|m| m.iter().any(|x| x.as_str() == Some("rgb_array"))),
     })
+}
+
+/// The Python stack a gymnasium run ran on, recorded in its `run.json`: a run is bit-identical
+/// only under the same gymnasium and numpy (an env's dynamics and numpy's `sin` are theirs).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Versions {
+    /// Python's `major.minor.micro`.
+    pub python: String,
+    /// `gymnasium.__version__`.
+    pub gymnasium: String,
+    /// `numpy.__version__`.
+    pub numpy: String,
+    /// Minari's version, when installed.
+    #[serde(default)]
+    pub minari: Option<String>,
+}
+
+impl Versions {
+    /// What differs from `now`, one phrase per package: `gymnasium 1.2.0 when recorded, 1.4.0 now`.
+    pub fn differences(&self, now: &Versions) -> Vec<String> {
+        let show = |v: &Option<String>| v.clone().unwrap_or_else(|| "not installed".into());
+        [
+            ("Python", self.python.clone(), now.python.clone()),
+            ("gymnasium", self.gymnasium.clone(), now.gymnasium.clone()),
+            ("numpy", self.numpy.clone(), now.numpy.clone()),
+            ("minari", show(&self.minari), show(&now.minari)),
+        ]
+        .into_iter()
+        .filter(|(_, a, b)| a != b)
+        .map(|(name, a, b)| format!("{name} {a} when recorded, {b} now"))
+        .collect()
+    }
+}
+
+/// The versions of the Python stack a worker for `cfg` runs (a pooled worker's, else a new one's).
+pub(super) fn versions(cfg: &GymConfig) -> Result<Versions> {
+    Ok(Session::checkout(cfg, false)?.versions().clone())
 }
 
 /// Asks a worker what the env is (the first time a spec naming it is read).
@@ -348,4 +403,24 @@ fn failed(p: &Proc, cfg: &GymConfig, why: &str) -> Error {
         p.python,
         p.child.id()
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Versions;
+
+    #[test]
+    fn version_differences_name_each_package_that_changed() {
+        let v = |numpy: &str, minari: Option<&str>| Versions {
+            python: "3.11.2".into(),
+            gymnasium: "1.2.0".into(),
+            numpy: numpy.into(),
+            minari: minari.map(String::from),
+        };
+        assert!(v("2.4.6", None).differences(&v("2.4.6", None)).is_empty());
+        assert_eq!(
+            v("2.4.6", None).differences(&v("2.3.0", Some("0.5.3"))),
+            ["numpy 2.4.6 when recorded, 2.3.0 now", "minari not installed when recorded, 0.5.3 now"]
+        );
+    }
 }

@@ -67,7 +67,7 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
     }
     write_atomic(&dir.join("summary.csv"), |w| std::io::Write::write_all(w, summary.as_bytes()))?;
     files.push("summary.csv".into());
-    tables::claims(&mut md, &claims);
+    tables::claims(&mut md, &claims, cfg.learners.iter().any(|p| !p.claims.is_empty()));
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     files.push("report.md".into());
     Ok(Outputs { files, claims })
