@@ -251,7 +251,6 @@ fn upper_gamma(a: f64, x: f64) -> f64 {
         }
         return 1.0 - front * sum;
     }
-    const TINY: f64 = 1e-300;
     let mut b = x + 1.0 - a;
     let mut c = 1.0 / TINY;
     let mut d = 1.0 / b;
@@ -260,13 +259,9 @@ fn upper_gamma(a: f64, x: f64) -> f64 {
         let an = -(i as f64) * (i as f64 - a);
         b += 2.0;
         d = an * d + b;
-        if d.abs() < TINY {
-            d = TINY;
-        }
+        d = lentz_floor(d);
         c = b + an / c;
-        if c.abs() < TINY {
-            c = TINY;
-        }
+        c = lentz_floor(c);
         d = 1.0 / d;
         h *= d * c;
         if (d * c - 1.0).abs() < 1e-16 {
@@ -298,13 +293,18 @@ fn incomplete_beta(x: f64, a: f64, b: f64) -> f64 {
     }
 }
 
+/// What modified Lentz's rule puts in place of a zero denominator of a continued fraction.
+const TINY: f64 = 1e-300;
+
+/// A denominator of a continued fraction kept away from zero (modified Lentz's rule).
+fn lentz_floor(x: f64) -> f64 {
+    if x.abs() < TINY { TINY } else { x }
+}
+
 fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
-    const TINY: f64 = 1e-300;
     let mut c = 1.0;
     let mut d = 1.0 - (a + b) * x / (a + 1.0);
-    if d.abs() < TINY {
-        d = TINY;
-    }
+    d = lentz_floor(d);
     d = 1.0 / d;
     let mut h = d;
     for m in 1..=500 {
@@ -315,13 +315,9 @@ fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
             -(a + m) * (a + b + m) * x / ((a + 2.0 * m) * (a + 2.0 * m + 1.0)),
         ] {
             d = 1.0 + num * d;
-            if d.abs() < TINY {
-                d = TINY;
-            }
+            d = lentz_floor(d);
             c = 1.0 + num / c;
-            if c.abs() < TINY {
-                c = TINY;
-            }
+            c = lentz_floor(c);
             d = 1.0 / d;
             h *= d * c;
         }

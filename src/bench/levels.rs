@@ -75,11 +75,6 @@ pub(super) fn shapes(ev: &Evaluator, isa: Isa, peak: f64) -> Result<Vec<ShapeFig
     Ok(out)
 }
 
-/// The level the kernels run at in this process (the best, capped by `BFQI_ISA`).
-pub(super) fn kernel_level() -> Isa {
-    crate::learn::cpu::mlp()
-}
-
 /// The levels `--isa` names: `all` (every level this CPU runs, best first) or a comma-separated
 /// list of level names, each one this CPU runs.
 pub(super) fn parse_levels(value: &str) -> Result<Vec<Isa>> {
@@ -110,9 +105,13 @@ pub(super) struct LevelFigures {
     pub shapes: Vec<ShapeFigures>,
 }
 
-/// Times the shapes at each of `levels` (on one thread), printing a side-by-side table.
-pub(super) fn side_by_side(ev: &Evaluator, levels: &[Isa], say: &dyn Fn(String)) -> Result<Vec<LevelFigures>> {
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().map_err(|e| Error::Data(e.to_string()))?;
+/// Times the shapes at each of `levels` on the one-thread pool `one`, printing a side-by-side table.
+pub(super) fn side_by_side(
+    ev: &Evaluator,
+    levels: &[Isa],
+    one: &rayon::ThreadPool,
+    say: &dyn Fn(String),
+) -> Result<Vec<LevelFigures>> {
     let mut out = Vec::new();
     for &isa in levels {
         let peak = fma_peak_gflops_on(isa, 1.0);

@@ -14,7 +14,7 @@
 //!   networks, early-stopped) trained by Keras on the same rows and settings, and the ratio.
 
 use super::PythonReference;
-use super::levels::{SHAPE_EPOCHS, kernel_level, parse_levels, shapes, side_by_side};
+use super::levels::{SHAPE_EPOCHS, parse_levels, shapes, side_by_side};
 use crate::error::{Error, Result};
 use crate::fqi::Fqi;
 use crate::ga::chromosome::{Decoded, decode};
@@ -247,6 +247,7 @@ fn every_level(opts: &SearchBench, levels: &[crate::learn::cpu::Isa]) -> Result<
         "bench search --isa · the kernel levels this CPU runs the MLP at, each timed and measured against its own FMA peak (this process would use {})",
         kernel_isa()
     ));
+    let one = pool(1)?;
     let mut envs = Vec::new();
     for name in targets(&opts.env) {
         let (spec, origin) = Spec::resolve(&name)?;
@@ -257,7 +258,7 @@ fn every_level(opts: &SearchBench, levels: &[crate::learn::cpu::Isa]) -> Result<
             Shape::new(ev.dataset(0)?.1.n_inputs(), &spec.search.network.hidden, Activation::Sigmoid).widths().to_vec();
         let arrow: Vec<String> = widths.iter().map(usize::to_string).collect();
         say(format!("\n{env_name} ({}) — network {}", origin.display(), arrow.join(" → ")));
-        let figures = side_by_side(&ev, levels, &say)?;
+        let figures = side_by_side(&ev, levels, &one, &say)?;
         envs.push(json!({"env": env_name, "spec": origin.display().to_string(), "widths": widths, "levels": figures}));
     }
     say("\n  (the bound counts every vector operation as one slot; on the portable level an FMA is ~15 SSE2 instructions when the build has no FMA, so that level can pass its bound)".into());
@@ -314,7 +315,7 @@ pub fn search(opts: &SearchBench) -> Result<Value> {
         ));
         say(format!("  dataset 0: {transitions} transitions in {dataset_s:.2} s"));
 
-        let shape_figures = one.install(|| shapes(&ev, kernel_level(), peak))?;
+        let shape_figures = one.install(|| shapes(&ev, crate::learn::cpu::mlp(), peak))?;
         say(format!("  network shape, {SHAPE_EPOCHS} epochs on the first model's rows, 1 thread:"));
         for f in &shape_figures {
             say(format!(
