@@ -124,17 +124,28 @@ pub fn worker(dir: &Path, folder: &str, id: &str) -> Result<()> {
 /// Validates the winner of the search in `dir` ([`validate::run`]) when no search is running: the
 /// run's lock is taken first, so it never races a search (or another validation) writing the same
 /// directory; then the search's report is rebuilt with the validation in it.
+///
+/// With `target.out` apart from the search (`validate --into`), `out` is created if missing and
+/// locked instead, the search is only read, and `out/report.md` gets the validation alone.
 pub fn validate(
-    dir: &Path,
+    target: &validate::Target<'_>,
     rule: &ValidateRule,
     exec: &dyn Executor,
     budget: &Budget<'_>,
     quiet: bool,
 ) -> Result<validate::Outcome> {
-    let _lock = crate::store::RunLock::acquire(dir)?;
-    let outcome = validate::run(dir, rule, exec, budget, quiet)?;
-    if matches!(outcome, validate::Outcome::Validated(_)) {
-        crate::report::search::write(dir)?;
+    let apart = target.out != target.source;
+    if apart {
+        crate::store::create_dir(target.out)?;
+    }
+    let _lock = crate::store::RunLock::acquire(target.out)?;
+    let outcome = validate::run_into(target, rule, exec, budget, quiet)?;
+    if let validate::Outcome::Validated(v) = &outcome {
+        if apart {
+            crate::report::validation::write(target.source, target.out, v)?;
+        } else {
+            crate::report::search::write(target.source)?;
+        }
     }
     Ok(outcome)
 }

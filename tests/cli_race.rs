@@ -218,3 +218,90 @@ fn an_explicit_select_fitness_changes_nothing() {
     assert_eq!(read(a.join("spec.json")), read(b.join("spec.json")));
     assert!(!read(a.join("best.json")).contains("selection"), "the thesis's rule adds no field to best.json");
 }
+
+/// Every regular file under `dir`, by path relative to it, with its bytes.
+fn snapshot(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                todo.push(p);
+            } else {
+                out.insert(p.strip_prefix(dir).unwrap().to_path_buf(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn validate_into_races_a_finished_search_apart_and_leaves_its_files_as_they_are() {
+    let d = tmp("into");
+    // The search validates by its spec's rule (no race); the same search raced in-run is the
+    // reference the validation kept apart must equal.
+    ok(&search(d.path(), &[], &["--jobs", "2", "--seed", "4"]));
+    let run = d.path().join("run");
+    let raced_dir = d.path().join("raced");
+    std::fs::create_dir_all(&raced_dir).unwrap();
+    let p = preset(d.path(), "select", serde_json::json!({ "validate": race(), "select": "validated" }));
+    ok(&search(&raced_dir, &[&p], &["--jobs", "2", "--seed", "4"]));
+    let before = snapshot(&run);
+
+    let apart = d.path().join("apart");
+    let validate = |jobs: &str| {
+        bin()
+            .arg("validate")
+            .arg(&run)
+            .args(["--top", "3", "--datasets", "6", "--race-first", "2", "--race-step", "2", "--select", "validated"])
+            .args(["--jobs", jobs, "--quiet", "--into"])
+            .arg(&apart)
+            .output()
+            .unwrap()
+    };
+    ok(&validate("2"));
+    assert!(before == snapshot(&run), "validate --into wrote into the search it validated");
+
+    let v: Value = json(apart.join("validation.json"));
+    let mut reference: Value = json(raced_dir.join("run").join("validation.json"));
+    assert_eq!(v["source"], run.display().to_string(), "validation.json names the search it read");
+    reference["source"] = v["source"].clone();
+    assert_eq!(v, reference, "the race run apart equals the same race run inside the search");
+    let best: Value = json(apart.join("best.json"));
+    let winner = v["rounds"].as_array().unwrap().last().unwrap()["leader"].as_str().unwrap();
+    assert_eq!(best["selection"]["select"], "validated", "{best}");
+    assert_eq!(best["selection"]["validated"], winner);
+    assert_eq!(best, json(raced_dir.join("run").join("best.json")), "best.json as select: validated gives");
+    let r = bin().arg("reproduce").arg(apart.join("best.json")).output().unwrap();
+    assert_eq!(r.status.code(), Some(0), "{}", String::from_utf8_lossy(&r.stdout));
+    let report = read(apart.join("report.md"));
+    assert!(report.contains(&format!("# Validation of `{}`", run.display())), "{report}");
+    assert!(report.contains("### Race") && report.contains("search.select: validated"), "{report}");
+    // Units the search already had are read, not recomputed: only the race's missing ones are here.
+    let stored = |dir: &Path| std::fs::read_dir(dir.join("validation")).map_or(0, |r| r.count());
+    assert!(stored(&apart) + stored(&run) >= stored(&raced_dir.join("run")));
+
+    // Again, on one thread: nothing new is computed and the result is the same.
+    let units = snapshot(&apart.join("validation"));
+    ok(&validate("1"));
+    assert_eq!(units, snapshot(&apart.join("validation")));
+    assert_eq!(v, json(apart.join("validation.json")));
+    assert!(before == snapshot(&run));
+
+    // Refused before anything is computed: a winner rule with nowhere to keep it apart, and a
+    // validation apart on Slurm (whose tasks find a unit's spec in the run directory).
+    let o = bin().arg("validate").arg(&run).args(["--select", "validated"]).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = bin()
+        .arg("validate")
+        .arg(&run)
+        .args(["--executor", "slurm", "--into"])
+        .arg(d.path().join("slurm"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--into"));
+    assert!(!d.path().join("slurm").exists());
+    assert!(before == snapshot(&run));
+}

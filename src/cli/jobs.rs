@@ -7,6 +7,7 @@ use crate::exec::{self, interrupt_flag};
 use crate::ga::search::{self, SearchOverrides};
 use crate::run_dir::{Budget, Ending};
 use crate::runs::RunKind;
+use crate::spec::Select;
 use anyhow::{Context, Result};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -135,6 +136,14 @@ pub struct ValidateArgs {
     /// No race: every setting on every validation dataset, even where the spec races.
     #[arg(long, conflicts_with_all = ["race_first", "race_step"])]
     pub no_race: bool,
+    /// Write this validation into DIR (validation.json, best.json, report.md and the units the
+    /// search lacks) and only read the search: its own validation and best.json stay as they are.
+    #[arg(long, value_name = "DIR")]
+    pub into: Option<PathBuf>,
+    /// Which setting DIR's best.json holds: `fitness` (the best fitness) or `validated` (the
+    /// validation's winner); default: the search's `search.select`.
+    #[arg(long, requires = "into", value_parser = ["fitness", "validated"])]
+    pub select: Option<String>,
     /// Suppress progress output.
     #[arg(long)]
     pub quiet: bool,
@@ -272,9 +281,17 @@ pub(super) fn validate(a: ValidateArgs) -> Result<Outcome> {
         no_race: a.no_race,
     };
     let rule = validate::rule_for_search(&a.dir, &flags)?;
+    if a.into.is_some() && a.exec.executor != crate::exec::Kind::Local {
+        // A Slurm task finds a unit's spec in its run directory, which DIR has not.
+        return Err(
+            crate::error::Error::Usage("--into: runs on the local executor only (drop --executor)".into()).into()
+        );
+    }
     let exec = a.exec.executor(&a.dir)?;
     let budget = Budget::new(interrupt_flag(), None);
-    let v = match crate::runs::validate(&a.dir, &rule, exec.as_ref(), &budget, a.quiet)? {
+    let select = a.select.as_deref().map(|s| if s == "validated" { Select::Validated } else { Select::Fitness });
+    let target = validate::Target { source: &a.dir, out: a.into.as_deref().unwrap_or(&a.dir), select };
+    let v = match crate::runs::validate(&target, &rule, exec.as_ref(), &budget, a.quiet)? {
         validate::Outcome::Validated(v) => v,
         validate::Outcome::Stopped(stop) => {
             return Ok(outcome(&Ending::Stopped(stop), &format!("bfqi-ga validate {}", a.dir.display())));

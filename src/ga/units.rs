@@ -184,6 +184,9 @@ pub struct Evaluator {
     spec: Spec,
     results_hash: String,
     store: UnitStore,
+    /// Where units missing from `store` are read (never written): the search a `validate --into`
+    /// directory validates.
+    also: Option<UnitStore>,
     role: Role,
     /// The run's `run.json` says every unit carries a checksum ([`checksummed`]).
     checksummed: bool,
@@ -203,11 +206,21 @@ impl Evaluator {
             results_hash: spec.results_hash(),
             spec,
             store: UnitStore::named(dir, role.folder()),
+            also: None,
             role,
             checksummed: checksummed(dir),
             data: Mutex::new(HashMap::new()),
             warned: Mutex::new(Default::default()),
         }
+    }
+
+    /// An evaluator of `role`'s datasets that stores units under `out` and reads those it lacks from
+    /// the search in `source` (its spec's units, its checksum rule): what `validate --into` runs.
+    pub fn reading_from(spec: Spec, source: &Path, out: &Path, role: Role) -> Self {
+        let mut ev = Self::with_role(spec, out, role);
+        ev.also = Some(UnitStore::named(source, role.folder()));
+        ev.checksummed = checksummed(source);
+        ev
     }
 
     /// The resolved spec.
@@ -364,9 +377,12 @@ impl Evaluator {
     /// A stored unit without a warning: `Ok(None)` if there is no file, `Err` with what is wrong
     /// if it does not parse, names another unit, or its checksum or spec hash disagrees.
     pub fn verified(&self, id: &str) -> std::result::Result<Option<UnitResult>, String> {
-        let path = self.unit_path(id);
+        let mut path = self.unit_path(id);
         if !path.is_file() {
-            return Ok(None);
+            match self.also.as_ref().map(|a| a.path(id)).filter(|p| p.is_file()) {
+                Some(p) => path = p,
+                None => return Ok(None),
+            }
         }
         let u = read_json::<UnitResult>(&path).map_err(|e| format!("unreadable ({e})"))?;
         match self.check_unit(&u, id) {

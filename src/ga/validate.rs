@@ -74,6 +74,9 @@ pub struct Validation {
     /// Why the race ended, when the rule races.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub race_end: Option<End>,
+    /// The search validated, when this validation lives apart from it (`validate --into`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source: Option<String>,
 }
 
 /// The rule `validate` applies to the search in `dir`: its spec's `search.validate`, with what the
@@ -152,6 +155,46 @@ pub enum Outcome {
 /// generation) through `exec`, until `budget` says stop, and writes `validation.json` and
 /// `best.json`'s `validation`. Units already stored are read, not recomputed.
 pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) -> Result<Outcome> {
+    run_into(&Target { source: dir, out: dir, select: None }, rule, exec, budget, quiet)
+}
+
+/// Where a validation reads its search and writes its results.
+#[derive(Debug, Clone, Copy)]
+pub struct Target<'a> {
+    /// The search's run directory.
+    pub source: &'a Path,
+    /// Where `validation.json`, `best.json` and new units go: `source` itself, or (`validate
+    /// --into`) a directory of its own, so that a search's committed validation stays as it is
+    /// while another rule is tried beside it.
+    pub out: &'a Path,
+    /// The winner rule in place of the spec's `search.select` (`validate --select`).
+    pub select: Option<Select>,
+}
+
+impl Target<'_> {
+    fn apart(&self) -> bool {
+        self.source != self.out
+    }
+
+    fn evaluator(&self, spec: &crate::spec::Spec, role: Role) -> Evaluator {
+        if self.apart() {
+            Evaluator::reading_from(spec.clone(), self.source, self.out, role)
+        } else {
+            Evaluator::with_role(spec.clone(), self.source, role)
+        }
+    }
+}
+
+/// [`run`] for a [`Target`]: with `out` apart from `source`, the search is only read (units it
+/// lacks are computed into `out`) and `validation.json` records the search it validated.
+pub fn run_into(
+    t: &Target<'_>,
+    rule: &ValidateRule,
+    exec: &dyn Executor,
+    budget: &Budget<'_>,
+    quiet: bool,
+) -> Result<Outcome> {
+    let dir = t.source;
     rule.validate().map_err(|e| Error::File { path: dir.to_path_buf(), message: e.to_string() })?;
     let spec = load_spec(dir)?;
     let hall_path = dir.join("hall_of_fame.json");
@@ -178,9 +221,12 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
         }
     }
 
-    let search = Evaluator::new(spec.clone(), dir);
-    let validation = Evaluator::with_role(spec.clone(), dir, Role::Validation);
+    let search = t.evaluator(&spec, Role::Search);
+    let validation = t.evaluator(&spec, Role::Validation);
     validation.store().prepare()?;
+    if t.apart() {
+        search.store().prepare()?;
+    }
     let s = &spec.search;
     // Search-dataset units (of the thesis optimum, when the search never drew it) first, then the
     // validation units; each list longest first, so the last units do not leave a core idle.
@@ -329,7 +375,7 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
             ),
         };
     }
-    let select = spec.search.select;
+    let select = t.select.unwrap_or(spec.search.select);
     let tuned = match (select, best_validated) {
         (Select::Validated, Some(b)) => b.setting.clone(),
         _ => by_fitness.clone(),
@@ -344,8 +390,9 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
         rounds,
         race_end,
         entries,
+        source: t.apart().then(|| dir.display().to_string()),
     };
-    let v_path = dir.join("validation.json");
+    let v_path = t.out.join("validation.json");
     // Validating again with other caps discards the earlier result: say so rather than silently.
     if v_path.is_file() && read_json::<Validation>(&v_path).ok().is_none_or(|old| old.rule != v.rule) {
         eprintln!(
@@ -360,7 +407,16 @@ pub fn run(dir: &Path, rule: &ValidateRule, exec: &dyn Executor, budget: &Budget
     }
     best.validation = v.summary_of(&tuned);
     best.selection = v.selection(&by_fitness);
-    write_json(&best_path, &best)?;
+    if t.apart() {
+        // Kept apart, best.json records the rule that chose it, as a search run with that rule
+        // would, so that it reads (and reproduces) the same as the in-search one.
+        let mut chosen = spec.clone();
+        chosen.search.validate = Some(rule.clone());
+        chosen.search.select = select;
+        best.spec_hash = Some(chosen.hash());
+        best.spec = Some(chosen);
+    }
+    write_json(&t.out.join("best.json"), &best)?;
     Ok(Outcome::Validated(v))
 }
 

@@ -8,3 +8,4 @@ pub mod plot;
 pub mod policy;
 pub mod rollout;
 pub mod search;
+pub mod validation;

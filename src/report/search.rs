@@ -285,7 +285,7 @@ fn racing(rule: &crate::ga::racing::RaceRule, records: &[GenerationRecord]) -> S
     md
 }
 
-fn side_by_side(v: &Validation, env: &str) -> String {
+pub(super) fn side_by_side(v: &Validation, env: &str) -> String {
     let Some(ours) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
     let Some(thesis) = v.thesis_entry(env) else { return String::new() };
     let n = ours.search_scores.len().max(ours.validation_scores.len());
@@ -324,7 +324,7 @@ fn side_by_side(v: &Validation, env: &str) -> String {
 
 /// The tuned config minus each other validated setting, paired by dataset, with t intervals, on
 /// the search and on the validation datasets.
-fn paired_differences(v: &Validation) -> String {
+pub(super) fn paired_differences(v: &Validation) -> String {
     let Some(winner) = v.entries.iter().find(|e| e.setting == v.tuned) else { return String::new() };
     let mut md = format!(
         "\n### Paired differences\n\nThe tuned config `{}` minus each other setting, dataset by dataset, over the \
