@@ -121,6 +121,16 @@ pub fn worker(dir: &Path, folder: &str, id: &str) -> Result<()> {
     Ok(())
 }
 
+/// Rebuilds `dir/report.md` when `dir` holds a validation kept apart from its search (`validate
+/// --into`: a `validation.json` naming its `source`); `Ok(false)` when it holds none. The source's
+/// path is as `validate` was given it, so it is resolved from the directory `report` runs in.
+pub fn report_validation_apart(dir: &Path) -> Result<bool> {
+    let Some(v) = validate::load(dir) else { return Ok(false) };
+    let Some(source) = v.source.as_deref() else { return Ok(false) };
+    crate::report::validation::write(Path::new(source), dir, &v)?;
+    Ok(true)
+}
+
 /// Validates the winner of the search in `dir` ([`validate::run`]) when no search is running: the
 /// run's lock is taken first, so it never races a search (or another validation) writing the same
 /// directory; then the search's report is rebuilt with the validation in it.

@@ -278,6 +278,10 @@ fn validate_into_races_a_finished_search_apart_and_leaves_its_files_as_they_are(
     let report = read(apart.join("report.md"));
     assert!(report.contains(&format!("# Validation of `{}`", run.display())), "{report}");
     assert!(report.contains("### Race") && report.contains("search.select: validated"), "{report}");
+    // `report` rebuilds the report of a validation kept apart from its records.
+    std::fs::remove_file(apart.join("report.md")).unwrap();
+    ok(&bin().arg("report").arg(&apart).output().unwrap());
+    assert_eq!(report, read(apart.join("report.md")));
     // Units the search already had are read, not recomputed: only the race's missing ones are here.
     let stored = |dir: &Path| std::fs::read_dir(dir.join("validation")).map_or(0, |r| r.count());
     assert!(stored(&apart) + stored(&run) >= stored(&raced_dir.join("run")));

@@ -91,6 +91,56 @@ fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
     let mean = a.iter().zip(&b).map(|(x, y)| x - y).sum::<f64>() / a.len() as f64;
     let row = report.lines().find(|l| l.starts_with("| validation datasets")).expect("a validation row");
     assert!(row.contains(&format!("{mean:+.3} ± ")), "{row} (expected mean difference {mean:+.3})");
+
+    // `tidy` removes the taken units of settings the random search never drew nor validated, and
+    // nothing its records, report or validation read.
+    let tidy = |dry: bool| {
+        let mut c = bin();
+        c.arg("tidy").arg(&rnd);
+        if dry {
+            c.arg("--dry-run");
+        }
+        let o = c.output().unwrap();
+        ok(&o);
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let count = |folder: &str| std::fs::read_dir(rnd.join(folder)).map_or(0, |r| r.count());
+    let before = count("units");
+    let dry = tidy(true);
+    assert_eq!(count("units"), before, "a dry run removes nothing: {dry}");
+    let done = tidy(false);
+    assert_eq!(dry.replace("would be removed", "removed"), done);
+    assert!(count("units") < before, "{done}");
+    let mut used: std::collections::HashSet<String> = g_rnd
+        .iter()
+        .flat_map(|g| g["individuals"].as_array().unwrap().iter())
+        .map(|i| i["setting"].as_str().unwrap().into())
+        .collect();
+    let v: Value = json(rnd.join("validation.json"));
+    used.extend(v["entries"].as_array().unwrap().iter().map(|e| e["setting"].as_str().unwrap().to_string()));
+    for f in std::fs::read_dir(rnd.join("units")).unwrap() {
+        let name = f.unwrap().file_name().to_string_lossy().into_owned();
+        let setting = name.rsplit_once(".d").unwrap().0;
+        assert!(used.contains(setting), "{name} was kept but nothing uses it");
+    }
+    for s in &used {
+        assert!(rnd.join("units").join(format!("{s}.d0.json")).is_file(), "{s}'s units were removed");
+    }
+    ok(&bin().arg("report").arg(&rnd).output().unwrap());
+    assert_eq!(report, common::read(rnd.join("report.md")), "the report rebuilds the same after tidy");
+    let st = bin().arg("status").arg(&rnd).output().unwrap();
+    assert!(!String::from_utf8_lossy(&st.stdout).contains(" ! "), "{}", String::from_utf8_lossy(&st.stdout));
+    assert!(tidy(false).contains(": 0 unit file(s)"), "a second tidy has nothing to remove");
+
+    // A search that has not finished may need any unit on resume: refused, nothing removed.
+    let mut state: Value = json(ga.join("state.json"));
+    state["state"] = "stopped".into();
+    std::fs::write(ga.join("state.json"), state.to_string()).unwrap();
+    let units = std::fs::read_dir(ga.join("units")).unwrap().count();
+    let o = bin().arg("tidy").arg(&ga).output().unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("only a finished search"));
+    assert_eq!(units, std::fs::read_dir(ga.join("units")).unwrap().count());
 }
 
 #[test]

@@ -166,6 +166,16 @@ pub struct StampArgs {
     pub dir: PathBuf,
 }
 
+/// `bfqi-ga tidy`.
+#[derive(Debug, Args)]
+pub struct TidyArgs {
+    /// A finished search run directory.
+    pub dir: PathBuf,
+    /// Only count what would be removed.
+    #[arg(long)]
+    pub dry_run: bool,
+}
+
 /// `bfqi-ga report`.
 #[derive(Debug, Args)]
 pub struct ReportArgs {
@@ -356,10 +366,27 @@ pub(super) fn stamp(a: StampArgs) -> Result<Outcome> {
     Ok(Outcome::Success)
 }
 
+pub(super) fn tidy(a: TidyArgs) -> Result<Outcome> {
+    let t = crate::ga::tidy::tidy(&a.dir, a.dry_run)?;
+    println!(
+        "{}: {} unit file(s) of settings it never drew nor validated {} ({:.1} MB), {} kept",
+        a.dir.display(),
+        t.removed,
+        if a.dry_run { "would be removed" } else { "removed" },
+        t.bytes as f64 / 1e6,
+        t.kept
+    );
+    Ok(Outcome::Success)
+}
+
 pub(super) fn report(a: ReportArgs) -> Result<Outcome> {
     if a.dir.join("batch.json").is_file() {
         let n = crate::batch::report(&a.dir)?;
         eprintln!("wrote {n} job reports and summary.md into {}", a.dir.display());
+        return Ok(Outcome::Success);
+    }
+    if !a.dir.join("spec.json").is_file() && crate::runs::report_validation_apart(&a.dir)? {
+        eprintln!("wrote report.md of the validation kept apart into {}", a.dir.display());
         return Ok(Outcome::Success);
     }
     match crate::runs::kind(&a.dir)? {

@@ -9,7 +9,7 @@ mod models;
 mod runs;
 
 pub use dashboard::DashboardArgs;
-pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, ValidateArgs};
+pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, TidyArgs, ValidateArgs};
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
 
@@ -58,6 +58,8 @@ pub enum Command {
     /// Give the units of a run made before units carried checksums their checksums, so that an
     /// edit or a deleted checksum is seen from then on.
     Stamp(StampArgs),
+    /// Remove from a finished search the units it took with --units-from and never used.
+    Tidy(TidyArgs),
     /// Write a random-policy dataset as CSV.
     Dataset(DatasetArgs),
     /// List the environments and their settings.
@@ -96,6 +98,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         Command::Status(a) => jobs::status(a),
         Command::Report(a) => jobs::report(a),
         Command::Stamp(a) => jobs::stamp(a),
+        Command::Tidy(a) => jobs::tidy(a),
         Command::Dashboard(a) => dashboard::dashboard(a),
         Command::Reproduce(a) => models::reproduce(a),
         Command::Fitness(a) => models::fitness(a),

@@ -12,6 +12,7 @@ mod runner;
 pub mod search;
 pub mod setup;
 pub mod status;
+pub mod tidy;
 pub mod units;
 pub mod validate;
 pub mod winner;
