@@ -30,6 +30,7 @@ pub mod runs;
 pub mod spec;
 pub mod stats;
 pub mod store;
+pub mod table;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tuned;
