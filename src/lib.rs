@@ -15,6 +15,7 @@ pub mod error;
 pub mod eval;
 pub mod exec;
 pub mod experiment;
+pub mod export;
 pub mod fqi;
 pub mod ga;
 pub mod learn;
