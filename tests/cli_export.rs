@@ -133,6 +133,43 @@ fn the_committed_comparison_exports_one_row_per_unit() {
 }
 
 #[test]
+fn a_batch_concatenates_its_jobs_under_job_and_kind() {
+    let tmp = empty_dir("export", "batch");
+    let batch = tmp.join("batch");
+    std::fs::create_dir_all(batch.join("jobs")).unwrap();
+    // The committed runs as the batch's jobs (read only), and a job not started yet.
+    std::os::unix::fs::symlink(committed("cartpole"), batch.join("jobs/s")).unwrap();
+    std::os::unix::fs::symlink(committed("cartpole-compare-mlp-complexity"), batch.join("jobs/c")).unwrap();
+    std::fs::write(batch.join("plan.json"), "{}").unwrap();
+    let job = |name: &str, kind: &str, state: &str| {
+        serde_json::json!({"name": name, "kind": kind, "state": state, "dir": format!("jobs/{name}"),
+            "message": "", "seconds": 0.0, "result": ""})
+    };
+    let states = serde_json::json!([
+        job("s", "search", "finished"),
+        job("c", "compare", "finished"),
+        job("p", "search", "pending")
+    ]);
+    std::fs::write(batch.join("batch.json"), states.to_string()).unwrap();
+    let out = tmp.join("b.parquet");
+    export(&[batch.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let t = table::read(&out).unwrap();
+    let (search, compare) = (committed("cartpole"), committed("cartpole-compare-mlp-complexity"));
+    let n_search = files(&search.join("units")) + files(&search.join("validation"));
+    assert_eq!(t.rows(), n_search + files(&compare.join("units")));
+    assert_eq!(&t.names()[..3], ["job", "kind", "run"]);
+    let (jobs, kinds) = (strs(&t, "job"), strs(&t, "kind"));
+    assert!(jobs[..n_search].iter().all(|j| j.as_deref() == Some("s")) && kinds[0].as_deref() == Some("search"));
+    assert!(
+        jobs[n_search..].iter().all(|j| j.as_deref() == Some("c")) && kinds[n_search].as_deref() == Some("compare")
+    );
+    // Columns of one kind only are missing in the other's rows.
+    assert!(strs(&t, "analysis")[..n_search].iter().all(Option::is_none));
+    assert!(strs(&t, "setting")[n_search..].iter().all(Option::is_none));
+    assert!(!batch.join("units.parquet").exists());
+}
+
+#[test]
 fn bad_destinations_and_directories_are_refused() {
     let run = committed("cartpole");
     let out = bin().args(["export", run.to_str().unwrap(), "--out", "-"]).output().unwrap();
