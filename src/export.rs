@@ -330,3 +330,38 @@ fn batch(dir: &Path) -> Result<Table> {
     }
     Ok(all)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_destination_defaults_to_parquet_in_the_run_and_follows_the_extension() {
+        let d = Path::new("runs/s");
+        let file = |p: &str, f| Destination::File(PathBuf::from(p), f);
+        let to = |format, out: Option<&str>| Destination::resolve(d, format, out.map(Path::new)).unwrap();
+        assert_eq!(to(None, None), file("runs/s/units.parquet", Format::Parquet));
+        assert_eq!(to(Some(Format::Csv), None), file("runs/s/units.csv", Format::Csv));
+        assert_eq!(to(None, Some("t.CSV")), file("t.CSV", Format::Csv));
+        assert_eq!(to(None, Some("t.dat")), file("t.dat", Format::Parquet));
+        assert_eq!(to(Some(Format::Parquet), Some("t.csv")), file("t.csv", Format::Parquet));
+        assert_eq!(to(Some(Format::Csv), Some("-")), Destination::Stdout);
+        let e = Destination::resolve(d, None, Some(Path::new("-"))).unwrap_err().to_string();
+        assert!(e.contains("add --format csv"), "{e}");
+    }
+
+    #[test]
+    fn seeds_are_written_whole_in_hexadecimal() {
+        assert_eq!(seed_text(1), "0x0000000000000001");
+        assert_eq!(seed_text(u64::MAX), "0xffffffffffffffff");
+    }
+
+    #[test]
+    fn an_empty_search_table_has_every_column() {
+        let t = empty_search();
+        assert_eq!(t.rows(), 0);
+        assert_eq!(t.width(), 21);
+        assert!(matches!(t.column("generation"), Some(Column::Int(_))));
+        assert!(matches!(t.column("seed"), Some(Column::Str(_))));
+    }
+}

@@ -107,6 +107,18 @@ fn the_committed_search_exports_one_row_per_unit_in_both_formats() {
     assert_eq!(ints(&p, "generation"), ints(&c, "generation"));
 
     pandas_reads(&pq, &csv, &p);
+
+    // A search without units yet: no rows, the same columns and types.
+    let fresh = tmp.join("fresh");
+    std::fs::create_dir_all(&fresh).unwrap();
+    for f in ["spec.json", "run.json"] {
+        std::fs::copy(run.join(f), fresh.join(f)).unwrap();
+    }
+    export(&[fresh.to_str().unwrap()]);
+    let e = table::read(&fresh.join("units.parquet")).unwrap();
+    assert_eq!((e.rows(), e.names()), (0, p.names()));
+    let types = |t: &Table| t.columns().map(|(_, c)| c.type_name()).collect::<Vec<_>>();
+    assert_eq!(types(&e), types(&p));
 }
 
 #[test]
