@@ -41,6 +41,17 @@ pub enum Analysis {
     Samples,
 }
 
+impl Analysis {
+    /// Its name, as `compare.json` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Analysis::Iterations => "iterations",
+            Analysis::Complexity => "complexity",
+            Analysis::Samples => "samples",
+        }
+    }
+}
+
 /// One learner's part of a comparison.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -184,55 +195,38 @@ impl CompareConfig {
 
     /// Every unit, deduplicated, in a fixed order.
     pub fn units(&self) -> Vec<Unit> {
-        let mut set = BTreeSet::new();
+        let set: BTreeSet<Unit> = self.analyses.iter().flat_map(|&a| self.units_of(a)).collect();
+        set.into_iter().collect()
+    }
+
+    /// The units analysis `a` reads (a unit can serve several analyses: the complexity sweep's
+    /// point at the sample analysis's complexity and size is one of the sample analysis's).
+    pub fn units_of(&self, a: Analysis) -> Vec<Unit> {
+        let mut units = Vec::new();
         for (li, plan) in self.learners.iter().enumerate() {
-            for a in &self.analyses {
-                for algorithm in [Algorithm::Fqi, Algorithm::Bfqi] {
-                    match a {
-                        Analysis::Iterations => {
-                            for d in 0..plan.datasets {
-                                set.insert(Unit {
-                                    learner: li,
-                                    algorithm,
-                                    complexity: None,
-                                    episodes: plan.episodes,
-                                    dataset: d,
-                                });
-                            }
+            for algorithm in [Algorithm::Fqi, Algorithm::Bfqi] {
+                let unit =
+                    |complexity, episodes, dataset| Unit { learner: li, algorithm, complexity, episodes, dataset };
+                match a {
+                    Analysis::Iterations => {
+                        units.extend((0..plan.datasets).map(|d| unit(None, plan.episodes, d)));
+                    }
+                    Analysis::Complexity => {
+                        for &c in &plan.complexities {
+                            units.extend((0..plan.datasets).map(|d| unit(Some(c), plan.episodes, d)));
                         }
-                        Analysis::Complexity => {
-                            for &c in &plan.complexities {
-                                for d in 0..plan.datasets {
-                                    set.insert(Unit {
-                                        learner: li,
-                                        algorithm,
-                                        complexity: Some(c),
-                                        episodes: plan.episodes,
-                                        dataset: d,
-                                    });
-                                }
-                            }
-                        }
-                        Analysis::Samples => {
-                            let s = plan.samples.as_ref().expect("validated");
-                            let c = if algorithm == Algorithm::Fqi { s.fqi } else { s.bfqi };
-                            for &n in &s.sizes {
-                                for d in 0..s.datasets {
-                                    set.insert(Unit {
-                                        learner: li,
-                                        algorithm,
-                                        complexity: Some(c),
-                                        episodes: n,
-                                        dataset: d,
-                                    });
-                                }
-                            }
+                    }
+                    Analysis::Samples => {
+                        let s = plan.samples.as_ref().expect("validated");
+                        let c = if algorithm == Algorithm::Fqi { s.fqi } else { s.bfqi };
+                        for &n in &s.sizes {
+                            units.extend((0..s.datasets).map(|d| unit(Some(c), n, d)));
                         }
                     }
                 }
             }
         }
-        set.into_iter().collect()
+        units
     }
 
     /// The run configuration of a unit (its dataset index selects the dataset and seeds).

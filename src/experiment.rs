@@ -81,6 +81,11 @@ impl RunConfig {
         crate::store::json_hash(self)
     }
 
+    /// The seed dataset `index` is collected from (the comparison datasets' stream).
+    pub fn dataset_seed(&self, index: usize) -> u64 {
+        dataset_seed(self.seed, dataset::Role::Compare, index)
+    }
+
     fn settings(&self) -> FqiSettings {
         FqiSettings { algorithm: self.algorithm, iterations: self.iterations, eval_every: self.eval_every }
     }
@@ -282,7 +287,7 @@ pub fn run_dataset_saving(
     progress: impl FnMut(&IterationRecord),
 ) -> Result<DatasetResult> {
     let env = cfg.env.env();
-    let data = dataset::collect(env, cfg.episodes, dataset_seed(cfg.seed, dataset::Role::Compare, index))?;
+    let data = dataset::collect(env, cfg.episodes, cfg.dataset_seed(index))?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
         crate::error::Error::Data(m) => {
             crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))

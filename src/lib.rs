@@ -15,6 +15,7 @@ pub mod error;
 pub mod eval;
 pub mod exec;
 pub mod experiment;
+pub mod export;
 pub mod fqi;
 pub mod ga;
 pub mod learn;
@@ -30,6 +31,7 @@ pub mod runs;
 pub mod spec;
 pub mod stats;
 pub mod store;
+pub mod table;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tuned;

@@ -41,6 +41,16 @@ pub const VALIDATE_DATASETS: usize = 1000;
 /// thesis's settings give (the bicycle's B-FQI on Extra-Trees, 20 members × 50 trees, 165 MB).
 pub const MODEL_BYTES: u64 = 4 << 30;
 
+/// Rows of a table file read (`data.file`, a table `export` wrote): as many as the transitions of
+/// the largest dataset.
+pub const TABLE_ROWS: usize = TRANSITIONS;
+/// Columns of a table file read.
+pub const TABLE_COLUMNS: usize = 100_000;
+/// Values (rows × columns) of a table file read: 4 GB as doubles.
+pub const TABLE_CELLS: usize = 500_000_000;
+/// Bytes of a table file, checked before it is opened.
+pub const TABLE_BYTES: u64 = 16 << 30;
+
 /// `lo ≤ v ≤ hi`, or an error naming `field` and the range.
 pub fn within(field: &str, v: usize, lo: usize, hi: usize) -> Result<()> {
     ensure((lo..=hi).contains(&v), field, v, &format!("must be in {lo}..={hi}"))

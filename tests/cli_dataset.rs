@@ -94,7 +94,7 @@ fn bad_input_is_a_one_line_error_with_exit_code_2() {
 fn help_lists_every_subcommand_and_envs_lists_every_environment() {
     let o = bin().arg("--help").output().unwrap();
     let help = String::from_utf8_lossy(&o.stdout);
-    for c in ["search", "compare", "run", "reproduce", "batch", "status", "report", "dataset", "bench"] {
+    for c in ["search", "compare", "run", "reproduce", "batch", "status", "report", "export", "dataset", "bench"] {
         assert!(help.contains(&format!("  {c} ")), "--help lacks {c}");
     }
     let o = bin().arg("envs").output().unwrap();

@@ -1,5 +1,5 @@
 //! The long jobs and their run directories: `search`, `compare`, `batch`, `validate`, `status`,
-//! `report`.
+//! `report`, `export`.
 
 use super::{Outcome, outcome};
 use crate::compare;
@@ -174,6 +174,19 @@ pub struct TidyArgs {
     /// Only count what would be removed.
     #[arg(long)]
     pub dry_run: bool,
+}
+
+/// `bfqi-ga export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// A search, comparison or batch run directory.
+    pub dir: PathBuf,
+    /// Table format (default: the one --out's extension names, else parquet).
+    #[arg(long, value_enum)]
+    pub format: Option<crate::table::Format>,
+    /// Output file (default: <RUN_DIR>/units.parquet, or units.csv); `-` writes CSV to standard output.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
 }
 
 /// `bfqi-ga report`.
@@ -401,6 +414,15 @@ pub(super) fn report(a: ReportArgs) -> Result<Outcome> {
                 a.dir.display()
             );
         }
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn export(a: ExportArgs) -> Result<Outcome> {
+    let to = crate::export::Destination::resolve(&a.dir, a.format, a.out.as_deref())?;
+    let rows = crate::export::export(&a.dir, &to)?;
+    if let crate::export::Destination::File(path, _) = &to {
+        eprintln!("wrote {rows} rows to {}", path.display());
     }
     Ok(Outcome::Success)
 }

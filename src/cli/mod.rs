@@ -9,7 +9,9 @@ mod models;
 mod runs;
 
 pub use dashboard::DashboardArgs;
-pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, TidyArgs, ValidateArgs};
+pub use jobs::{
+    BatchArgs, CompareArgs, ExportArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, TidyArgs, ValidateArgs,
+};
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
 
@@ -55,6 +57,8 @@ pub enum Command {
     Dashboard(DashboardArgs),
     /// Regenerate tables, plots and report.md from stored results.
     Report(ReportArgs),
+    /// One row per FQI unit of a search, comparison or batch, as Parquet or CSV (for pandas).
+    Export(ExportArgs),
     /// Give the units of a run made before units carried checksums their checksums, so that an
     /// edit or a deleted checksum is seen from then on.
     Stamp(StampArgs),
@@ -99,6 +103,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         Command::Report(a) => jobs::report(a),
         Command::Stamp(a) => jobs::stamp(a),
         Command::Tidy(a) => jobs::tidy(a),
+        Command::Export(a) => jobs::export(a),
         Command::Dashboard(a) => dashboard::dashboard(a),
         Command::Reproduce(a) => models::reproduce(a),
         Command::Fitness(a) => models::fitness(a),

@@ -228,6 +228,11 @@ impl Evaluator {
         &self.spec
     }
 
+    /// The seed dataset `d` of this role is collected from.
+    pub fn dataset_seed(&self, d: usize) -> u64 {
+        dataset_seed(self.spec.seed, self.role.datasets(), d)
+    }
+
     /// Search dataset `d`, laid out for the search's action encoding (collected on first use).
     pub fn dataset(&self, d: usize) -> Result<Arc<(Dataset, Encoded)>> {
         if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
@@ -235,7 +240,7 @@ impl Evaluator {
         }
         let env = self.spec.env.env();
         let s = &self.spec.search;
-        let data = dataset::collect(env, s.episodes, dataset_seed(self.spec.seed, self.role.datasets(), d))?;
+        let data = dataset::collect(env, s.episodes, self.dataset_seed(d))?;
         let enc = Encoded::new(&data, env.actions(), s.actions).map_err(|e| match e {
             // An action missing from a tiny dataset is the episode count's doing.
             Error::Data(m) => Error::invalid(
