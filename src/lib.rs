@@ -33,5 +33,6 @@ pub mod store;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tuned;
+pub mod work;
 
 pub use error::{Error, Result};

@@ -9,7 +9,7 @@ mod models;
 mod runs;
 
 pub use dashboard::DashboardArgs;
-pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, ValidateArgs};
+pub use jobs::{BatchArgs, CompareArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, ValidateArgs, WorkArgs};
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
 
@@ -55,6 +55,9 @@ pub enum Command {
     Dashboard(DashboardArgs),
     /// Regenerate tables, plots and report.md from stored results.
     Report(ReportArgs),
+    /// The work a search, comparison or batch did, from its units: epochs × rows, FLOPs, and
+    /// hours on the reference machine, beside its wall time.
+    Work(WorkArgs),
     /// Give the units of a run made before units carried checksums their checksums, so that an
     /// edit or a deleted checksum is seen from then on.
     Stamp(StampArgs),
@@ -96,6 +99,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         Command::Status(a) => jobs::status(a),
         Command::Report(a) => jobs::report(a),
         Command::Stamp(a) => jobs::stamp(a),
+        Command::Work(a) => jobs::work(a),
         Command::Dashboard(a) => dashboard::dashboard(a),
         Command::Reproduce(a) => models::reproduce(a),
         Command::Fitness(a) => models::fitness(a),
