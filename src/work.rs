@@ -23,6 +23,7 @@ use crate::ga::units::{Evaluator, Role, activation_name};
 use crate::learn::LearnerConfig;
 use crate::learn::mlp::{Activation, EpochWork, Shape, split_rows};
 use crate::store::read_json;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -248,13 +249,18 @@ pub fn of_search(dir: &Path) -> Result<Work> {
     let mut t = Tally::default();
     for role in [Role::Search, Role::Validation] {
         let ev = Evaluator::with_role(spec.clone(), dir, role);
-        let mut rows: HashMap<usize, (Vec<usize>, usize)> = HashMap::new();
-        for id in crate::run_dir::Units::store(&ev).ids() {
-            // A unit that does not verify is computed again on resume: not this run's work yet.
-            let Ok(Some(u)) = ev.verified(&id) else { continue };
-            if !rows.contains_key(&u.dataset) {
-                rows.insert(u.dataset, ev.network_rows(u.dataset)?);
-            }
+        // A unit that does not verify is computed again on resume: not this run's work yet.
+        let units: Vec<_> = crate::run_dir::Units::store(&ev)
+            .ids()
+            .par_iter()
+            .filter_map(|id| ev.verified(id).ok().flatten())
+            .collect();
+        let mut datasets: Vec<usize> = units.iter().map(|u| u.dataset).collect();
+        datasets.sort_unstable();
+        datasets.dedup();
+        let rows: HashMap<usize, (Vec<usize>, usize)> =
+            datasets.par_iter().map(|&d| Ok((d, ev.network_rows(d)?))).collect::<Result<_>>()?;
+        for u in &units {
             let (r, n_inputs) = &rows[&u.dataset];
             t.units += 1;
             t.unit_seconds += u.seconds;
