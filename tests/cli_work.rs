@@ -130,3 +130,36 @@ fn work_of_a_folder_that_is_no_run_is_refused_in_one_line() {
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains(d.str()) && err.contains("no compare.json or spec.json"), "{err}");
 }
+
+#[test]
+fn a_batch_works_the_sum_of_its_jobs_and_its_summary_and_status_say_so() {
+    let d = empty_dir("work", "batch");
+    let search = r#"{"name": "s", "search": "cartpole", "presets": ["quick"], "episodes": 25, "datasets": 2, "iterations": 2, "population": 4, "generations": 2, "seed": 4}"#;
+    let compare = r#"{"name": "c", "compare": "cartpole", "tuned": "from:s", "learner": "both", "datasets": 2, "episodes": 30, "iterations": 2}"#;
+    let plan = d.join("plan.json");
+    std::fs::write(&plan, format!("{{\"jobs\": [{search}, {compare}]}}")).unwrap();
+    let out = d.join("b");
+    let o = bin().arg("batch").arg(&plan).arg("--out").arg(&out).arg("--quiet").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (s, c, b) = (work(&out.join("s")), work(&out.join("c")), work(&out));
+    assert_eq!(b["kind"], "batch");
+    assert!(s["units"].as_u64().unwrap() > 0 && c["units"].as_u64().unwrap() > 0);
+    // The comparison's Extra-Trees units run no epochs: counted apart.
+    assert!(c["tree_units"].as_u64().unwrap() > 0, "{c}");
+    for k in ["units", "tree_units", "epochs", "epoch_rows"] {
+        assert_eq!(b[k].as_u64().unwrap(), s[k].as_u64().unwrap() + c[k].as_u64().unwrap(), "{k}");
+    }
+    let hours = s["reference_hours"].as_f64().unwrap() + c["reference_hours"].as_f64().unwrap();
+    assert!((b["reference_hours"].as_f64().unwrap() - hours).abs() <= 1e-12 + 1e-9 * hours);
+    let jobs = json(out.join("batch.json"));
+    let wall: f64 = jobs.as_array().unwrap().iter().map(|j| j["seconds"].as_f64().unwrap()).sum();
+    assert!((b["wall_seconds"].as_f64().unwrap() - wall).abs() < 1e-9);
+
+    let summary = read(out.join("summary.md"));
+    let row = summary.lines().find(|l| l.starts_with("| s |")).unwrap_or_else(|| panic!("{summary}"));
+    assert!(row.contains(&format!("{:.2} ref. h", s["reference_hours"].as_f64().unwrap())), "{row}");
+    assert!(summary.contains(&format!("**{hours:.2} ref. h**")), "{summary}");
+    let st = bin().arg("status").arg(&out).output().unwrap();
+    let text = String::from_utf8_lossy(&st.stdout);
+    assert_eq!(text.lines().filter(|l| l.contains(" · work ") && l.contains("epoch-rows")).count(), 2, "{text}");
+}
