@@ -540,7 +540,8 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     if !checks.is_empty() {
         md.push_str(&crate::report::batch::reference_section(dir, &checks));
     }
-    write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))
+    write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    crate::work::write(dir)
 }
 
 #[cfg(test)]

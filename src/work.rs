@@ -242,6 +242,19 @@ pub fn of_run(dir: &Path) -> Result<Work> {
     }
 }
 
+/// Writes the work of the run in `dir` to its `work.json`, beside its report (whose report.md it
+/// leaves as it was: committed reports rebuild byte for byte). A run whose work cannot be counted
+/// is said on stderr and keeps its report: the work is a record about the run, not a result of it.
+pub fn write(dir: &Path) -> Result<()> {
+    match of_run(dir) {
+        Ok(w) => crate::store::write_json(&dir.join("work.json"), &w),
+        Err(e) => {
+            eprintln!("warning: {}: its work is not counted: {e}", dir.display());
+            Ok(())
+        }
+    }
+}
+
 /// A search's work: every stored unit that verifies, of the search datasets and of validation.
 pub fn of_search(dir: &Path) -> Result<Work> {
     let spec = crate::ga::search::load_spec(dir)?;

@@ -155,6 +155,15 @@ fn a_batch_works_the_sum_of_its_jobs_and_its_summary_and_status_say_so() {
     let wall: f64 = jobs.as_array().unwrap().iter().map(|j| j["seconds"].as_f64().unwrap()).sum();
     assert!((b["wall_seconds"].as_f64().unwrap() - wall).abs() < 1e-9);
 
+    // Each report wrote the same figures to its run's work.json (report.md is left as it was).
+    for (dir, w) in [(out.join("s"), &s), (out.join("c"), &c), (out.clone(), &b)] {
+        let stored = json(dir.join("work.json"));
+        for k in ["kind", "units", "tree_units", "epochs", "epoch_rows", "flops"] {
+            assert_eq!(stored[k], w[k], "{}: {k}", dir.display());
+        }
+    }
+    assert!(!read(out.join("s/report.md")).contains("epoch-rows"));
+
     let summary = read(out.join("summary.md"));
     let row = summary.lines().find(|l| l.starts_with("| s |")).unwrap_or_else(|| panic!("{summary}"));
     assert!(row.contains(&format!("{:.2} ref. h", s["reference_hours"].as_f64().unwrap())), "{row}");
