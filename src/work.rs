@@ -233,12 +233,18 @@ impl Tally {
 /// The work of the run in `dir`: a search (its search and validation units), a comparison (its
 /// units) or a batch (the sum of its jobs that have a run directory).
 pub fn of_run(dir: &Path) -> Result<Work> {
+    // Told apart by their defining files here rather than by `runs`, which shows this in `status`.
     if dir.join("plan.json").is_file() && dir.join("batch.json").is_file() {
-        return of_batch(dir);
-    }
-    match crate::runs::kind(dir)? {
-        crate::runs::RunKind::Search => of_search(dir),
-        crate::runs::RunKind::Compare => of_comparison(dir),
+        of_batch(dir)
+    } else if dir.join("compare.json").is_file() {
+        of_comparison(dir)
+    } else if dir.join("spec.json").is_file() {
+        of_search(dir)
+    } else {
+        Err(Error::File {
+            path: dir.to_path_buf(),
+            message: "not a comparison, search or batch directory (no compare.json or spec.json, nor plan.json)".into(),
+        })
     }
 }
 
@@ -257,7 +263,7 @@ pub fn write(dir: &Path) -> Result<()> {
 
 /// A search's work: every stored unit that verifies, of the search datasets and of validation.
 pub fn of_search(dir: &Path) -> Result<Work> {
-    let spec = crate::ga::search::load_spec(dir)?;
+    let spec = crate::ga::setup::load_spec(dir)?;
     let net = &spec.search.network;
     let mut t = Tally::default();
     for role in [Role::Search, Role::Validation] {
@@ -315,16 +321,17 @@ pub fn of_comparison(dir: &Path) -> Result<Work> {
 /// A batch's work: the sum of its jobs' (those with a run directory), and as wall time the jobs'
 /// seconds batch.json records.
 pub fn of_batch(dir: &Path) -> Result<Work> {
-    let states: Vec<crate::batch::JobState> = read_json(&dir.join("batch.json"))?;
+    // batch.json's jobs, read for their directory and seconds only (the batch module shows this).
+    let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
     let mut total = Tally::default().finish("batch", "other", None, Vec::new())?;
-    for s in &states {
-        let job = dir.join(&s.dir);
-        if crate::runs::kind(&job).is_ok() {
+    for j in &jobs {
+        let job = dir.join(j["dir"].as_str().unwrap_or_default());
+        if job != dir && (job.join("compare.json").is_file() || job.join("spec.json").is_file()) {
             let w = of_run(&job)?;
             total.add(&Work { wall_seconds: None, ..w });
         }
     }
-    total.wall_seconds = Some(states.iter().map(|s| s.seconds).sum());
+    total.wall_seconds = Some(jobs.iter().filter_map(|j| j["seconds"].as_f64()).sum());
     Ok(total)
 }
 
