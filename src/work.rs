@@ -395,8 +395,7 @@ mod tests {
         // An env without figures of its own takes `other`'s.
         let other = r.flops_per_second("Acrobot-v1", Activation::Tanh).unwrap();
         assert!((other - 218.6e9 * 0.42).abs() < 1.0, "{other}");
-        let mut t = Tally::default();
-        t.flops = [0.0, 0.0, relu * 3600.0 * 2.0];
+        let t = Tally { flops: [0.0, 0.0, relu * 3600.0 * 2.0], ..Default::default() };
         let w = t.finish("search", "cartpole", Some(60.0), Vec::new()).unwrap();
         assert!((w.reference_hours - 1.0).abs() < 1e-9, "{}", w.reference_hours);
         assert!(w.short().contains("1.00 h on AVX-512 Xeon VM, 2 cores"), "{}", w.short());
