@@ -476,9 +476,16 @@ pub fn report(dir: &Path) -> Result<usize> {
 
 fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     let mut md = String::from(
-        "# Batch summary\n\n| job | kind | state | time | result | details |\n|---|---|---|---|---|---|\n",
+        "# Batch summary\n\n| job | kind | state | time | work | result | details |\n|---|---|---|---|---|---|---|\n",
     );
-    for s in states {
+    // Each job's work from its units, as `bfqi-ga work` counts it (none before its run exists).
+    let works: Vec<Option<crate::work::Work>> = states
+        .iter()
+        .map(|s| crate::runs::kind(&dir.join(&s.dir)).ok().and_then(|_| crate::work::of_run(&dir.join(&s.dir)).ok()))
+        .collect();
+    let work_cell =
+        |w: &crate::work::Work| format!("{:.2} ref. h ({:.3e} epoch-rows)", w.reference_hours, w.epoch_rows as f64);
+    for (s, w) in states.iter().zip(&works) {
         let link = match s.kind {
             JobKind::Compare if s.state == JobPhase::Finished => format!("[report]({}/report.md)", s.dir),
             JobKind::Search if dir.join(&s.dir).join("best.json").is_file() => {
@@ -488,18 +495,24 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
         };
         let details = if s.message.is_empty() { link } else { format!("{} {link}", s.message.replace('|', "/")) };
         md.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} |\n",
             s.name,
             s.kind.name(),
             s.state.name(),
             crate::progress::human(s.seconds),
+            w.as_ref().map_or(String::new(), work_cell),
             s.result.replace('|', "/"),
             details
         ));
     }
     let total: f64 = states.iter().map(|s| s.seconds).sum();
+    let reference = crate::work::Reference::committed().map(|r| r.name).unwrap_or_default();
+    let (ref_h, rows) =
+        works.iter().flatten().fold((0.0, 0.0), |(h, r), w| (h + w.reference_hours, r + w.epoch_rows as f64));
     md.push_str(&format!(
-        "| **total** | | | **{}** ({:.2} h) | | |\n\n`time`: each job's wall time over all invocations, as batch.json recorded it.\n",
+        "| **total** | | | **{}** ({:.2} h) | **{ref_h:.2} ref. h** ({rows:.3e} epoch-rows) | | |\n\n`time`: each job's wall time over all invocations, as batch.json recorded it. \
+         `work`: counted from each job's units, whatever machine ran them (`bfqi-ga work`): network epochs × the rows \
+         each fit trained on, and the hours their FLOPs take on the reference machine ({reference}).\n",
         crate::progress::human(total),
         total / 3600.0
     ));
@@ -527,7 +540,8 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     if !checks.is_empty() {
         md.push_str(&crate::report::batch::reference_section(dir, &checks));
     }
-    write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))
+    write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    crate::work::write(dir)
 }
 
 #[cfg(test)]

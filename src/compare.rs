@@ -364,6 +364,12 @@ impl Comparison {
         self.units.iter().find(|u| self.cfg.unit_id(u) == id)
     }
 
+    /// The stored units that verify ([`Self::verified`]), in the configuration's order: what a
+    /// partial comparison has done so far.
+    pub fn verified_units(&self) -> Vec<UnitRecord> {
+        self.units.iter().filter_map(|&u| Some(UnitRecord { unit: u, result: self.verified(&u).ok()?? })).collect()
+    }
+
     /// A unit's stored result: `Ok(None)` if there is no file, `Err` with what is wrong if it does
     /// not parse, holds another dataset, its checksum or configuration hash disagrees, or it has
     /// no checksum in a run whose `run.json` says every unit has one (units of older runs carry

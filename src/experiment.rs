@@ -4,7 +4,7 @@
 //! `(seed, "fit", i)` and evaluation episodes from `(seed, "eval", i)`. Datasets run in parallel and
 //! the results do not depend on the thread count.
 
-use crate::dataset::{self, dataset_seed};
+use crate::dataset::{self, Dataset, dataset_seed};
 use crate::env::EnvConfig;
 use crate::error::{Error, Result, ensure};
 use crate::eval::eval_seed;
@@ -273,19 +273,10 @@ pub struct RunReport {
     pub summary: Vec<IterationSummary>,
 }
 
-/// Runs the configured algorithm on dataset `index` (collecting it first).
-pub fn run_dataset(cfg: &RunConfig, index: usize, progress: impl FnMut(&IterationRecord)) -> Result<DatasetResult> {
-    run_dataset_saving(cfg, index, None, progress)
-}
-
-/// [`run_dataset`], also writing the last Q-function to `models/dataset-<index>.model` when
-/// `models` is given (not for a diverged dataset).
-pub fn run_dataset_saving(
-    cfg: &RunConfig,
-    index: usize,
-    models: Option<&Path>,
-    progress: impl FnMut(&IterationRecord),
-) -> Result<DatasetResult> {
+/// Comparison dataset `index` of `cfg`, collected and laid out for its action encoding, refused
+/// (naming `episodes`) when a network would have fewer than two rows: what [`run_dataset`] learns
+/// from, and what a comparison's work is counted against ([`crate::work`]).
+pub fn encoded_dataset(cfg: &RunConfig, index: usize) -> Result<(Dataset, Encoded)> {
     let env = cfg.env.env();
     let data = dataset::collect(env, cfg.episodes, cfg.dataset_seed(index))?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
@@ -306,6 +297,24 @@ pub fn run_dataset_saving(
             ));
         }
     }
+    Ok((data, enc))
+}
+
+/// Runs the configured algorithm on dataset `index` (collecting it first).
+pub fn run_dataset(cfg: &RunConfig, index: usize, progress: impl FnMut(&IterationRecord)) -> Result<DatasetResult> {
+    run_dataset_saving(cfg, index, None, progress)
+}
+
+/// [`run_dataset`], also writing the last Q-function to `models/dataset-<index>.model` when
+/// `models` is given (not for a diverged dataset).
+pub fn run_dataset_saving(
+    cfg: &RunConfig,
+    index: usize,
+    models: Option<&Path>,
+    progress: impl FnMut(&IterationRecord),
+) -> Result<DatasetResult> {
+    let env = cfg.env.env();
+    let (data, enc) = encoded_dataset(cfg, index)?;
     let fit_seed = rng::derive(cfg.seed, rng::purpose::FIT, &[index as u64]);
     let eval_seed = eval_seed(cfg.seed, index);
     let (record, q) =

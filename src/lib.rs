@@ -35,5 +35,6 @@ pub mod table;
 #[cfg(test)]
 pub(crate) mod testkit;
 pub mod tuned;
+pub mod work;
 
 pub use error::{Error, Result};

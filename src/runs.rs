@@ -62,9 +62,23 @@ pub fn find(root: &Path) -> Vec<PathBuf> {
 /// One line on the run in `dir` for `bfqi-ga status`, by its kind, ending with what of it does not
 /// verify.
 pub fn status_line(dir: &Path) -> Result<String> {
-    match kind(dir)? {
-        RunKind::Compare => crate::compare::status_line(dir),
-        RunKind::Search => crate::ga::status::line(dir),
+    let line = match kind(dir)? {
+        RunKind::Compare => crate::compare::status_line(dir)?,
+        RunKind::Search => crate::ga::status::line(dir)?,
+    };
+    // Its work, once it has some, before what does not verify; left out when it cannot be counted
+    // (a gymnasium run's datasets need its Python).
+    Ok(match crate::work::of_run(dir) {
+        Ok(w) if w.units + w.tree_units > 0 => with_work(&line, &w.short()),
+        _ => line,
+    })
+}
+
+/// `line` with `work` added as one more field, before the problems (`  ! …`) it ends with.
+fn with_work(line: &str, work: &str) -> String {
+    match line.find("  ! ") {
+        Some(i) => format!("{}  · {work}{}", &line[..i], &line[i..]),
+        None => format!("{line}  · {work}"),
     }
 }
 
@@ -158,4 +172,13 @@ pub fn validate(
         }
     }
     Ok(outcome)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_work_field_comes_before_the_problems() {
+        assert_eq!(super::with_work("cartpole finished  dir", "work 1 k"), "cartpole finished  dir  · work 1 k");
+        assert_eq!(super::with_work("a  dir  ! damaged  ! edited", "w"), "a  dir  · w  ! damaged  ! edited");
+    }
 }

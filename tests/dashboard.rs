@@ -113,6 +113,12 @@ fn routes_serve_the_committed_runs() {
     assert!(page["charts"]["reference"]["value"].as_f64().is_some(), "the thesis optimum's line");
     assert_eq!(rows(table(&page, "population")), ids.len());
     assert!(rows(table(&page, "hall_of_fame")) > 0 && rows(table(&page, "validation")) > 0);
+    // Its work, as `bfqi-ga work` counts it from the units.
+    let o = bin().args(["work", "--json"]).arg(&bicycle).output().unwrap();
+    let cli: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let work = &table(&page, "work")["rows"][0];
+    assert_eq!(work[0]["text"].as_str().unwrap(), cli["units"].to_string());
+    assert_eq!(work[2]["text"].as_str().unwrap(), cli["epochs"].to_string());
     let html = s.ok("/run/0/bicycle");
     for id in ["fitness", "explorer", "gene-delta", "gene-patience", "gene-activation"] {
         assert!(html.contains(&format!("id=\"{id}\"")), "{id}");
@@ -139,6 +145,7 @@ fn routes_serve_the_committed_runs() {
     let cmp = s.json("/run/0/bicycle-compare-mlp-iterations?json=1");
     assert!(!cmp["charts"]["series"].as_array().unwrap().is_empty());
     assert!(rows(table(&cmp, "claims")) > 0, "the report's thesis claims");
+    assert_eq!(rows(table(&cmp, "work")), 1, "a comparison's work");
     let html = s.ok("/run/0/bicycle-compare-mlp-iterations");
     assert!(html.contains("src=\"/file/0/bicycle-compare-mlp-iterations/mlp-iterations.png\""), "{}", short(&html));
     let png = s.get("/file/0/bicycle-compare-mlp-iterations/mlp-iterations.png");

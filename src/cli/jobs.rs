@@ -159,6 +159,16 @@ pub struct StatusArgs {
     pub dir: PathBuf,
 }
 
+/// `bfqi-ga work`.
+#[derive(Debug, Args)]
+pub struct WorkArgs {
+    /// A search, comparison or batch directory.
+    pub dir: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
 /// `bfqi-ga stamp`.
 #[derive(Debug, Args)]
 pub struct StampArgs {
@@ -355,6 +365,19 @@ pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
             Ok(line) => println!("{line}"),
             // One damaged run must not hide the others.
             Err(e) => eprintln!("warning: skipped {e}"),
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+pub(super) fn work(a: WorkArgs) -> Result<Outcome> {
+    let w = crate::work::of_run(&a.dir)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&w)?);
+    } else {
+        println!("{} {} — counted from its units, priced on the reference machine", w.kind, a.dir.display());
+        for l in w.lines() {
+            println!("  {l}");
         }
     }
     Ok(Outcome::Success)

@@ -10,7 +10,7 @@ mod runs;
 
 pub use dashboard::DashboardArgs;
 pub use jobs::{
-    BatchArgs, CompareArgs, ExportArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, TidyArgs, ValidateArgs,
+    BatchArgs, CompareArgs, ExportArgs, ReportArgs, SearchArgs, StampArgs, StatusArgs, TidyArgs, ValidateArgs, WorkArgs,
 };
 pub use models::{EvaluateArgs, FitnessArgs, ReproduceArgs, RolloutArgs};
 pub use runs::{BenchArgs, DatasetArgs, EnvsArgs, RunArgs, WorkerArgs};
@@ -59,6 +59,9 @@ pub enum Command {
     Report(ReportArgs),
     /// One row per FQI unit of a search, comparison or batch, as Parquet or CSV (for pandas).
     Export(ExportArgs),
+    /// The work a search, comparison or batch did, from its units: epochs × rows, FLOPs, and
+    /// hours on the reference machine, beside its wall time.
+    Work(WorkArgs),
     /// Give the units of a run made before units carried checksums their checksums, so that an
     /// edit or a deleted checksum is seen from then on.
     Stamp(StampArgs),
@@ -104,6 +107,7 @@ pub fn run(cli: Cli) -> Result<Outcome> {
         Command::Stamp(a) => jobs::stamp(a),
         Command::Tidy(a) => jobs::tidy(a),
         Command::Export(a) => jobs::export(a),
+        Command::Work(a) => jobs::work(a),
         Command::Dashboard(a) => dashboard::dashboard(a),
         Command::Reproduce(a) => models::reproduce(a),
         Command::Fitness(a) => models::fitness(a),

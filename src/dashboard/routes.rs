@@ -140,7 +140,7 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
     let label = run.label(roots);
     let crumbs = vec![(label.clone(), run.url())];
     let mut body = String::new();
-    let (tables, charts) = match (run.kind, setting) {
+    let (mut tables, charts) = match (run.kind, setting) {
         (Kind::Search, Some(id)) => {
             let (tables, charts) =
                 super::search::setting_page(&run, id).ok_or_else(|| Reply::error(404, "no such setting"))?;
@@ -174,6 +174,9 @@ fn run_page(roots: &Roots, rest: &str, setting: Option<&str>) -> Result<Page, Re
             (super::runs::rollout(&run), Value::Null)
         }
     };
+    if matches!(run.kind, Kind::Search | Kind::Compare | Kind::Batch) {
+        tables.extend(super::runs::work(&run));
+    }
     Ok(Page { title: format!("{} {label}", run.kind.name()), crumbs, body, tables, charts, notes: run.notes() })
 }
 

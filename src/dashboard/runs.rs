@@ -171,6 +171,45 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
     (vec![claims, t], json!({ "series": series }))
 }
 
+/// Counted works by run directory, with the modification times they were counted at.
+type WorkCache = std::collections::HashMap<std::path::PathBuf, (Vec<Option<std::time::SystemTime>>, crate::work::Work)>;
+static WORKS: std::sync::Mutex<Option<WorkCache>> = std::sync::Mutex::new(None);
+
+/// A search's, comparison's or batch's work ([`crate::work::of_run`]) as a table; none when it
+/// cannot be counted. Counting reads every unit and the page polls every 2 s, so a run's work is
+/// counted again only when its units, validation, state or jobs changed since.
+pub fn work(run: &Run) -> Option<Table> {
+    let stamp: Vec<_> = ["units", "validation", "state.json", "batch.json"]
+        .iter()
+        .map(|f| std::fs::metadata(run.dir.join(f)).and_then(|m| m.modified()).ok())
+        .collect();
+    let cached = WORKS.lock().ok()?.get_or_insert_with(Default::default).get(&run.dir).cloned();
+    let w = match cached {
+        Some((s, w)) if s == stamp => w,
+        _ => {
+            let w = crate::work::of_run(&run.dir).ok()?;
+            WORKS.lock().ok()?.get_or_insert_with(Default::default).insert(run.dir.clone(), (stamp, w.clone()));
+            w
+        }
+    };
+    let mut t = Table::new(
+        "work",
+        &format!("Work, counted from the units (machine-independent), and hours on the {}", w.reference),
+        &["network units", "tree units", "epochs", "epoch-rows", "FLOPs", "reference hours", "wall time", "ran on"],
+    );
+    t.push(vec![
+        Cell::text(w.units.to_string()),
+        Cell::text(w.tree_units.to_string()),
+        Cell::text(w.epochs.to_string()),
+        Cell::text(format!("{:.4e}", w.epoch_rows as f64)),
+        Cell::text(format!("{:.4e}", w.flops)),
+        Cell::num(Some(w.reference_hours)),
+        Cell::text(w.wall_seconds.map_or("not recorded".into(), human)),
+        Cell::text(if w.machines.is_empty() { "not recorded".into() } else { w.machines.join("; ") }),
+    ]);
+    Some(t)
+}
+
 /// A batch's page: its jobs, linked to their run directories when those are served.
 pub fn batch(run: &Run, roots: &Roots) -> Vec<Table> {
     let jobs: Vec<Value> = run.json("batch.json").unwrap_or_default();

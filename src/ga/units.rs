@@ -238,6 +238,24 @@ impl Evaluator {
         if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
             return Ok(x.clone());
         }
+        let x = Arc::new(self.collect(d)?);
+        self.data.lock().expect("dataset cache").insert(d, x.clone());
+        Ok(x)
+    }
+
+    /// The rows each network of dataset `d` is fitted on (one per action with `per_action`), and
+    /// the networks' inputs: what a unit's epochs are counted against ([`crate::work`]). Collected
+    /// afresh, not kept: a run's work is counted once, and its datasets can be large.
+    pub fn network_rows(&self, d: usize) -> Result<(Vec<usize>, usize)> {
+        let rows = |enc: &Encoded| ((0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).collect(), enc.n_inputs());
+        if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
+            return Ok(rows(&x.1));
+        }
+        Ok(rows(&self.collect(d)?.1))
+    }
+
+    /// Search dataset `d` collected and encoded, checked for networks it cannot train.
+    fn collect(&self, d: usize) -> Result<(Dataset, Encoded)> {
         let env = self.spec.env.env();
         let s = &self.spec.search;
         let data = dataset::collect(env, s.episodes, self.dataset_seed(d))?;
@@ -265,9 +283,7 @@ impl Evaluator {
                 ));
             }
         }
-        let x = Arc::new((data, enc));
-        self.data.lock().expect("dataset cache").insert(d, x.clone());
-        Ok(x)
+        Ok((data, enc))
     }
 
     /// The network a setting stands for.

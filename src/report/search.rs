@@ -250,6 +250,7 @@ pub fn write(dir: &Path) -> Result<usize> {
         md.push_str(&super::baseline::markdown(dir, &spec, &records, ga));
     }
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
+    crate::work::write(dir)?;
     Ok(records.len())
 }
 

@@ -70,6 +70,7 @@ pub fn write(dir: &Path, cfg: &CompareConfig, units: &[UnitRecord]) -> Result<Ou
     tables::claims(&mut md, &claims, cfg.learners.iter().any(|p| !p.claims.is_empty()));
     write_atomic(&dir.join("report.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     files.push("report.md".into());
+    crate::work::write(dir)?;
     Ok(Outputs { files, claims })
 }
 
