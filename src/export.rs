@@ -101,7 +101,7 @@ impl Origins {
         if !dir.join("generations.jsonl").is_file() {
             return Ok(o);
         }
-        let records: Vec<GenerationRecord> = crate::report::search::read_generations(dir)?;
+        let records: Vec<GenerationRecord> = crate::ga::records::read_generations(dir)?;
         for r in &records {
             for i in &r.individuals {
                 o.genes.entry(i.setting.clone()).or_insert(i.genes);

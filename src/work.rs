@@ -19,13 +19,13 @@ use crate::compare::Comparison;
 use crate::error::{Error, Result};
 use crate::experiment::encoded_dataset;
 use crate::fqi::IterationRecord;
-use crate::ga::units::{Evaluator, Role, activation_name};
+use crate::ga::units::{Evaluator, Role, activation_name, unit_id};
 use crate::learn::LearnerConfig;
 use crate::learn::mlp::{Activation, EpochWork, Shape, split_rows};
 use crate::store::read_json;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
 
 /// The reference machine's figures, as committed in `searches/reference-machine.json`.
@@ -261,17 +261,54 @@ pub fn write(dir: &Path) -> Result<()> {
     }
 }
 
-/// A search's work: every stored unit that verifies, of the search datasets and of validation.
+/// The units a search took with `--units-from` count only where it used them: the units its
+/// generations scored and its validation read, per folder (`units`, `validation`). `None` when it
+/// took none, so that every stored unit counts.
+fn taken_but_used(dir: &Path) -> Result<Option<[(HashSet<String>, Vec<std::path::PathBuf>); 2]>> {
+    let info: crate::ga::records::RunInfo = read_json(&dir.join("run.json"))?;
+    if info.units_from.is_empty() {
+        return Ok(None);
+    }
+    let (mut search, mut validation) = (HashSet::new(), HashSet::new());
+    if dir.join("generations.jsonl").is_file() {
+        for g in crate::ga::records::read_generations(dir)? {
+            for i in g.individuals {
+                search.extend((0..i.scores.len()).map(|k| unit_id(&i.decoded, k)));
+            }
+        }
+    }
+    if let Some(v) = crate::ga::validate::load(dir) {
+        for e in v.entries {
+            search.extend((0..e.search_scores.len()).map(|k| unit_id(&e.decoded, k)));
+            validation.extend((0..e.validation_scores.len()).map(|k| unit_id(&e.decoded, k)));
+        }
+    }
+    let sources = |folder: &str| info.units_from.iter().map(|s| Path::new(&s.dir).join(folder)).collect();
+    Ok(Some([(search, sources("units")), (validation, sources("validation"))]))
+}
+
+/// A search's work: every stored unit that verifies, of the search datasets and of validation;
+/// of the units taken from another run (`--units-from`), those the search used.
 pub fn of_search(dir: &Path) -> Result<Work> {
     let spec = crate::ga::setup::load_spec(dir)?;
     let net = &spec.search.network;
     let mut t = Tally::default();
-    for role in [Role::Search, Role::Validation] {
+    let taken = taken_but_used(dir)?;
+    for (r, role) in [Role::Search, Role::Validation].into_iter().enumerate() {
         let ev = Evaluator::with_role(spec.clone(), dir, role);
+        // A unit the search used counts; so does one it computed itself (stored, and not in a run
+        // it took units from), though no record names it yet (a generation in progress).
+        let counts = |id: &String| {
+            taken.as_ref().is_none_or(|t| {
+                let (used, sources) = &t[r];
+                used.contains(id) || !sources.iter().any(|s| s.join(format!("{id}.json")).is_file())
+            })
+        };
         // A unit that does not verify is computed again on resume: not this run's work yet.
         let units: Vec<_> = crate::run_dir::Units::store(&ev)
             .ids()
             .par_iter()
+            .filter(|id| counts(id))
             .filter_map(|id| ev.verified(id).ok().flatten())
             .collect();
         let mut datasets: Vec<usize> = units.iter().map(|u| u.dataset).collect();

@@ -106,6 +106,15 @@ fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
     };
     let count = |folder: &str| std::fs::read_dir(rnd.join(folder)).map_or(0, |r| r.count());
     let before = count("units");
+    // The work counted is the units the search used, whether it took or computed them: the same
+    // before and after tidy, and less than the files it took.
+    let work = || -> Value {
+        let o = bin().arg("work").arg(&rnd).arg("--json").output().unwrap();
+        ok(&o);
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let work_before = work();
+    assert!((work_before["units"].as_u64().unwrap() as usize) < before + count("validation"), "{work_before}");
     let dry = tidy(true);
     assert_eq!(count("units"), before, "a dry run removes nothing: {dry}");
     let done = tidy(false);
@@ -126,6 +135,7 @@ fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
     for s in &used {
         assert!(rnd.join("units").join(format!("{s}.d0.json")).is_file(), "{s}'s units were removed");
     }
+    assert_eq!(work(), work_before, "tidy removed a unit the search used");
     ok(&bin().arg("report").arg(&rnd).output().unwrap());
     assert_eq!(report, common::read(rnd.join("report.md")), "the report rebuilds the same after tidy");
     let st = bin().arg("status").arg(&rnd).output().unwrap();

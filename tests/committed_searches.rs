@@ -226,3 +226,45 @@ fn the_cartpole_search_reproduces_bit_for_bit() {
     assert!(o.status.success(), "{out}{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.contains("matches bit for bit (10 datasets)"), "{out}");
 }
+
+/// The committed full searches' raced validations (`validate --into <env>-raced`, issue 50): each
+/// reads its search, whose validation scores are a prefix of the race's, gives the best.json that
+/// `select: validated` gives, and its report rebuilds from its records.
+#[test]
+fn the_raced_validations_of_the_full_searches_extend_theirs_and_rebuild() {
+    let mut found = 0;
+    for (name, dir) in searches() {
+        let raced = root().join(format!("{name}-raced"));
+        if !raced.is_dir() {
+            continue;
+        }
+        found += 1;
+        let v = json(raced.join("validation.json"));
+        assert_eq!(v["source"], format!("results/searches/{name}"), "{name}-raced");
+        assert!(v["rule"]["race"].is_object(), "{name}-raced is a race");
+        let full = json(dir.join("validation.json"));
+        for e in v["entries"].as_array().unwrap() {
+            let Some(f) = full["entries"].as_array().unwrap().iter().find(|f| f["setting"] == e["setting"]) else {
+                continue;
+            };
+            let (mine, theirs) =
+                (e["validation_scores"].as_array().unwrap(), f["validation_scores"].as_array().unwrap());
+            let n = mine.len().min(theirs.len());
+            assert_eq!(mine[..n], theirs[..n], "{name}-raced {}: not a prefix of the full validation", e["setting"]);
+        }
+        let best = json(raced.join("best.json"));
+        let leader = v["rounds"].as_array().unwrap().last().unwrap()["leader"].clone();
+        assert_eq!(best["selection"]["select"], "validated");
+        assert_eq!(best["selection"]["validated"], leader, "{name}-raced");
+        for f in std::fs::read_dir(raced.join("validation")).into_iter().flatten().flatten().map(|e| e.path()) {
+            assert!(json(&f)["checksum"].is_string(), "{}: no checksum", f.display());
+        }
+        let copy = fresh("committed-raced", &name);
+        copy_dir(&raced, &copy);
+        std::fs::remove_file(copy.join("report.md")).unwrap();
+        let o = bin().arg("report").arg(&copy).output().unwrap();
+        assert!(o.status.success(), "{name}-raced: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(read(raced.join("report.md")), read(copy.join("report.md")), "{name}-raced/report.md");
+    }
+    assert_eq!(found, 3, "cartpole, bicycle and pendulum each have a raced validation");
+}

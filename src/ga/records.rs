@@ -295,3 +295,16 @@ impl RunState {
         self.generation_seconds.iter().sum::<f64>() + self.current_seconds
     }
 }
+
+/// Reads `generations.jsonl`.
+pub fn read_generations(dir: &std::path::Path) -> crate::error::Result<Vec<GenerationRecord>> {
+    let path = dir.join("generations.jsonl");
+    let text = std::fs::read_to_string(&path).map_err(|e| crate::error::Error::io(&path, e))?;
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .map_err(|e| crate::error::Error::File { path: path.clone(), message: format!("line {}: {e}", i + 1) })
+        })
+        .collect()
+}

@@ -3,8 +3,8 @@
 //! removes the unit files of settings it never drew nor validated, so the run can be kept, or
 //! committed, at the size of what it used; its records, report and validation read only those.
 
+use super::records::read_generations;
 use crate::error::{Error, Result};
-use crate::report::search::read_generations;
 use crate::store::{RunLock, read_json};
 use std::collections::BTreeSet;
 use std::path::Path;

@@ -16,18 +16,7 @@ use crate::store::{read_json, write_atomic};
 use std::collections::HashSet;
 use std::path::Path;
 
-/// Reads `generations.jsonl`.
-pub fn read_generations(dir: &Path) -> Result<Vec<GenerationRecord>> {
-    let path = dir.join("generations.jsonl");
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    text.lines()
-        .enumerate()
-        .map(|(i, l)| {
-            serde_json::from_str(l)
-                .map_err(|e| Error::File { path: path.clone(), message: format!("line {}: {e}", i + 1) })
-        })
-        .collect()
-}
+pub use crate::ga::records::read_generations;
 
 /// `fitness.csv`, `fitness.png` and `fitness.svg`, with the thesis optimum's fitness as a reference
 /// line once the validation has scored it.
