@@ -261,10 +261,13 @@ pub fn write(dir: &Path) -> Result<()> {
     }
 }
 
+/// The unit ids a search used in one folder, and where the runs it took units from keep theirs.
+type Used = (HashSet<String>, Vec<std::path::PathBuf>);
+
 /// The units a search took with `--units-from` count only where it used them: the units its
 /// generations scored and its validation read, per folder (`units`, `validation`). `None` when it
 /// took none, so that every stored unit counts.
-fn taken_but_used(dir: &Path) -> Result<Option<[(HashSet<String>, Vec<std::path::PathBuf>); 2]>> {
+fn taken_but_used(dir: &Path) -> Result<Option<[Used; 2]>> {
     let info: crate::ga::records::RunInfo = read_json(&dir.join("run.json"))?;
     if info.units_from.is_empty() {
         return Ok(None);

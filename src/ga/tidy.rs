@@ -55,7 +55,7 @@ pub fn tidy(dir: &Path, dry_run: bool) -> Result<Tidy> {
     {
         let Ok(entries) = std::fs::read_dir(dir.join(folder)) else { continue };
         for e in entries {
-            let e = e.map_err(|err| Error::io(&dir.join(folder), err))?;
+            let e = e.map_err(|err| Error::io(dir.join(folder), err))?;
             let name = e.file_name().to_string_lossy().into_owned();
             match setting_of(&name) {
                 Some(s) if !keep.contains(s) => {

@@ -146,7 +146,7 @@ struct HallEntry {
 #[derive(Debug)]
 pub enum Outcome {
     /// Every unit scored: the validation, also written to `validation.json` and `best.json`.
-    Validated(Validation),
+    Validated(Box<Validation>),
     /// Stopped between units (Ctrl-C, the time budget); running it again goes on where it stopped.
     Stopped(Stop),
 }
@@ -417,7 +417,7 @@ pub fn run_into(
         best.spec = Some(chosen);
     }
     write_json(&t.out.join("best.json"), &best)?;
-    Ok(Outcome::Validated(v))
+    Ok(Outcome::Validated(Box::new(v)))
 }
 
 /// The thesis optimum's source label in a validation.
