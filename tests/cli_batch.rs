@@ -141,6 +141,14 @@ fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary
         row.contains(mine["setting"].as_str().unwrap()) && row.contains(theirs["setting"].as_str().unwrap()),
         "{row}"
     );
+    // The work cell: the two searches' reference hours as `bfqi-ga work` counts them, and their ratio.
+    let hours = |dir: &Path| {
+        let o = bin().arg("work").arg(dir).arg("--json").output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["reference_hours"].as_f64().unwrap()
+    };
+    let (jh, rh) = (hours(&out.join("s")), hours(&full));
+    assert!(row.ends_with(&format!("| {jh:.2} / {rh:.2} h ({:.1} %) |", 100.0 * jh / rh)), "{row}");
 
     // `report` rebuilds the summary and the job's report from the records alone.
     for f in ["summary.md", "s/report.md", "s/fitness.png"] {

@@ -191,6 +191,7 @@ fn readme_rows() -> Vec<(String, String)> {
             "| tuned config minus |",
             "| | GA | random |",
             "| GA winner minus random winner |",
+            "| job | validated winner |",
         ]
         .iter()
         .any(|h| header.starts_with(h));

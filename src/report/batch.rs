@@ -112,14 +112,16 @@ pub fn reference_section(batch: &Path, checks: &[(String, String, String)]) -> S
         "\n## Against the full-size searches\n\nEach search job's validated winner, scored on its reference's validation datasets (the same \
          datasets: same env, seed, episodes, iterations and network, checked when the batch started), against the \
          reference's validated winner: its mean ± 95 % interval (1.96·std/√n, as its report shows) and the paired \
-         difference (Student t, n − 1 degrees of freedom). `within` or `above` the interval keeps the promise.\n\n\
-         | job | validated winner | its validation mean | reference | reference's validated winner | its validation mean | verdict | winner − reference |\n\
-         |---|---|---|---|---|---|---|---|\n",
+         difference (Student t, n − 1 degrees of freedom). `within` or `above` the interval keeps the promise. \
+         `work`: the job's and the reference's hours on the reference machine, counted from the units each used \
+         (`bfqi-ga work`), and their ratio.\n\n\
+         | job | validated winner | its validation mean | reference | reference's validated winner | its validation mean | verdict | winner − reference | work |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
     );
     for (job, dir, reference) in checks {
         match reference_check(&batch.join(dir), Path::new(reference)) {
             Ok(c) => md.push_str(&format!(
-                "| {job} | `{}` | {} ({} datasets) | `{reference}` | `{}` | {:.3} ± {:.3} | {} | {} |\n",
+                "| {job} | `{}` | {} ({} datasets) | `{reference}` | `{}` | {:.3} ± {:.3} | {} | {} | {} |\n",
                 c.winner,
                 c.mean.map_or("−∞ (diverged)".into(), |m| format!("{m:.3}")),
                 c.datasets,
@@ -128,9 +130,24 @@ pub fn reference_section(batch: &Path, checks: &[(String, String, String)]) -> S
                 c.reference.ci95,
                 c.verdict(),
                 c.difference.map_or("—".into(), |d| d.show(3)),
+                work_ratio(&batch.join(dir), Path::new(reference)),
             )),
-            Err(why) => md.push_str(&format!("| {job} | — | {why} | `{reference}` | | | | |\n")),
+            Err(why) => md.push_str(&format!("| {job} | — | {why} | `{reference}` | | | | | |\n")),
         }
     }
     md
+}
+
+/// `job / reference h (ratio %)`: the two searches' hours on the reference machine, or `—` when
+/// either cannot be counted.
+fn work_ratio(job: &Path, reference: &Path) -> String {
+    match (crate::work::of_search(job), crate::work::of_search(reference)) {
+        (Ok(j), Ok(r)) if r.reference_hours > 0.0 => format!(
+            "{:.2} / {:.2} h ({:.1} %)",
+            j.reference_hours,
+            r.reference_hours,
+            100.0 * j.reference_hours / r.reference_hours
+        ),
+        _ => "—".into(),
+    }
 }
