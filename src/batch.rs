@@ -481,7 +481,7 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
     // Each job's work from its units, as `bfqi-ga work` counts it (none before its run exists).
     let works: Vec<Option<crate::work::Work>> = states
         .iter()
-        .map(|s| crate::runs::kind(&dir.join(&s.dir)).ok().and_then(|_| crate::work::of_run(&dir.join(&s.dir)).ok()))
+        .map(|s| crate::runs::kind(&dir.join(&s.dir)).ok().and_then(|_| crate::work::cached(&dir.join(&s.dir)).ok()))
         .collect();
     let work_cell =
         |w: &crate::work::Work| format!("{:.2} ref. h ({:.3e} epoch-rows)", w.reference_hours, w.epoch_rows as f64);

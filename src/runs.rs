@@ -68,7 +68,7 @@ pub fn status_line(dir: &Path) -> Result<String> {
     };
     // Its work, once it has some, before what does not verify; left out when it cannot be counted
     // (a gymnasium run's datasets need its Python).
-    Ok(match crate::work::of_run(dir) {
+    Ok(match crate::work::cached(dir) {
         Ok(w) if w.units + w.tree_units > 0 => with_work(&line, &w.short()),
         _ => line,
     })

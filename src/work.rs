@@ -248,6 +248,21 @@ pub fn of_run(dir: &Path) -> Result<Work> {
     }
 }
 
+/// The work of the run in `dir` as its `work.json` records it when nothing it counts from changed
+/// since it was written (its records, its unit folders: a folder's time changes when a unit is
+/// added or removed), else counted again ([`of_run`]). Counting rebuilds every dataset, seconds
+/// for a committed search, so `status` and a batch's summary read the record where they can.
+pub fn cached(dir: &Path) -> Result<Work> {
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let written = modified(&dir.join("work.json"));
+    let sources = ["state.json", "run.json", "validation.json", "compare.json", "batch.json", "units", "validation"];
+    let latest = sources.iter().filter_map(|f| modified(&dir.join(f))).max();
+    match (written, latest) {
+        (Some(w), Some(l)) if w >= l => read_json(&dir.join("work.json")).or_else(|_| of_run(dir)),
+        _ => of_run(dir),
+    }
+}
+
 /// Writes the work of the run in `dir` to its `work.json`, beside its report (whose report.md it
 /// leaves as it was: committed reports rebuild byte for byte). A run whose work cannot be counted
 /// is said on stderr and keeps its report: the work is a record about the run, not a result of it.

@@ -119,6 +119,8 @@ fn the_committed_cartpole_search_work_is_its_units_epochs_times_their_rows() {
     let validation = std::fs::read_dir(dir.join("validation")).unwrap().count();
     assert_eq!(all["units"].as_u64().unwrap() as usize, units + validation);
     assert!(all["epoch_rows"].as_u64().unwrap() > epoch_rows);
+    // The committed work.json, which `status` reads, is that count.
+    assert_eq!(json(dir.join("work.json")), all, "results/searches/cartpole/work.json is stale");
 }
 
 #[test]
@@ -171,4 +173,20 @@ fn a_batch_works_the_sum_of_its_jobs_and_its_summary_and_status_say_so() {
     let st = bin().arg("status").arg(&out).output().unwrap();
     let text = String::from_utf8_lossy(&st.stdout);
     assert_eq!(text.lines().filter(|l| l.contains(" · work ") && l.contains("epoch-rows")).count(), 2, "{text}");
+
+    // `status` reads a run's work.json while nothing it counts from has changed since (counting
+    // again rebuilds every dataset), and counts again once a unit is added or removed.
+    let mut stored = json(out.join("s/work.json"));
+    stored["epoch_rows"] = serde_json::json!(123_456_789_000u64);
+    std::fs::write(out.join("s/work.json"), stored.to_string()).unwrap();
+    let st = |dir: &Path| String::from_utf8_lossy(&bin().arg("status").arg(dir).output().unwrap().stdout).into_owned();
+    let cached = st(&out.join("s"));
+    assert!(cached.contains("123.46 G epoch-rows"), "status reads work.json: {cached}");
+    let unit = std::fs::read_dir(out.join("s/units")).unwrap().next().unwrap().unwrap().path();
+    let bytes = std::fs::read(&unit).unwrap();
+    std::fs::remove_file(&unit).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    std::fs::write(&unit, bytes).unwrap();
+    let counted = st(&out.join("s"));
+    assert!(!counted.contains("123.46 G epoch-rows"), "a unit folder newer than work.json is counted again: {counted}");
 }
