@@ -20,10 +20,12 @@ pub struct Tidy {
     pub bytes: u64,
 }
 
-/// The setting a unit file holds (`<setting>.d<k>.json`), or none for any other file.
-fn setting_of(file: &str) -> Option<&str> {
-    let (setting, d) = file.strip_suffix(".json")?.rsplit_once(".d")?;
-    d.parse::<usize>().ok().map(|_| setting)
+/// The setting a unit file holds (`<setting>.d<k>.json`, as [`unit_id`] names it), or none for any
+/// other file.
+///
+/// [`unit_id`]: super::units::unit_id
+fn setting_of(file: &str) -> Option<String> {
+    super::units::parse_unit_id(file.strip_suffix(".json")?).map(|(s, _)| super::units::setting_id(&s))
 }
 
 /// Removes from the finished search in `dir` the unit files (`units/`, `validation/`) of settings
@@ -58,7 +60,7 @@ pub fn tidy(dir: &Path, dry_run: bool) -> Result<Tidy> {
             let e = e.map_err(|err| Error::io(dir.join(folder), err))?;
             let name = e.file_name().to_string_lossy().into_owned();
             match setting_of(&name) {
-                Some(s) if !keep.contains(s) => {
+                Some(s) if !keep.contains(&s) => {
                     let path = e.path();
                     t.bytes += e.metadata().map_err(|err| Error::io(&path, err))?.len();
                     t.removed += 1;
@@ -80,10 +82,10 @@ mod tests {
 
     #[test]
     fn a_unit_file_names_its_setting() {
-        assert_eq!(setting_of("tanh_6.1e-4_711.d3.json"), Some("tanh_6.1e-4_711"));
-        assert_eq!(setting_of("sigmoid_4.6e-5_4.d12.json"), Some("sigmoid_4.6e-5_4"));
-        assert_eq!(setting_of("tanh_6.1e-4_711.d3.json.tmp1"), None);
-        assert_eq!(setting_of("notes.json"), None);
-        assert_eq!(setting_of("x.dfoo.json"), None);
+        assert_eq!(setting_of("tanh_6.1e-4_711.d3.json").as_deref(), Some("tanh_6.1e-4_711"));
+        assert_eq!(setting_of("sigmoid_4.6e-5_4.d12.json").as_deref(), Some("sigmoid_4.6e-5_4"));
+        assert_eq!(setting_of("tanh_6.1e-4_711.d3.json.tmp1").as_deref(), None);
+        assert_eq!(setting_of("notes.json").as_deref(), None);
+        assert_eq!(setting_of("x.dfoo.json").as_deref(), None);
     }
 }

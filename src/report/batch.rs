@@ -141,7 +141,7 @@ pub fn reference_section(batch: &Path, checks: &[(String, String, String)]) -> S
 /// `job / reference h (ratio %)`: the two searches' hours on the reference machine, or `—` when
 /// either cannot be counted.
 fn work_ratio(job: &Path, reference: &Path) -> String {
-    match (crate::work::of_search(job), crate::work::of_search(reference)) {
+    match (crate::work::cached(job), crate::work::cached(reference)) {
         (Ok(j), Ok(r)) if r.reference_hours > 0.0 => format!(
             "{:.2} / {:.2} h ({:.1} %)",
             j.reference_hours,
