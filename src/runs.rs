@@ -163,6 +163,10 @@ pub fn validate(
         crate::store::create_dir(target.out)?;
     }
     let _lock = crate::store::RunLock::acquire(target.out)?;
+    if !apart {
+        // A search tidied before it was validated again holds its taken units once more.
+        crate::ga::search::retake_units(target.source, quiet)?;
+    }
     let outcome = validate::run_into(target, rule, exec, budget, quiet)?;
     if let validate::Outcome::Validated(v) = &outcome {
         if apart {

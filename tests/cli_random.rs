@@ -172,3 +172,79 @@ fn units_from_another_spec_is_refused_before_a_run_directory_exists() {
     assert!(err.contains("--units-from") && err.contains("another spec"), "{err}");
     assert!(!rnd.exists(), "a refused command leaves nothing");
 }
+
+#[test]
+fn a_search_tidied_before_its_end_takes_the_units_again_and_ends_as_if_never_tidied() {
+    let d = empty_dir("random", "tidy-partial");
+    let (ga, whole, cut) = (d.path().join("ga"), d.path().join("whole"), d.path().join("cut"));
+    let wide = ["--generations", "4", "--population", "6"];
+    ok(&bin().args(["search", "cartpole", "--out"]).arg(&ga).args(tiny_with(&wide)).output().unwrap());
+    let preset = Path::new(env!("CARGO_MANIFEST_DIR")).join("searches/presets/random.json");
+    let random = |out: &Path, generations: &str| {
+        let mut c = bin();
+        c.args(["search", "cartpole", "--out"]).arg(out).args(tiny_with(&[
+            "--generations",
+            generations,
+            "--population",
+            "6",
+        ]));
+        ok(&c.arg("--preset").arg(&preset).arg("--units-from").arg(&ga).output().unwrap());
+    };
+    random(&whole, "4");
+    let tidy = |out: &Path| {
+        let o = bin().arg("tidy").arg(out).output().unwrap();
+        ok(&o);
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let tidied = |out: &Path| json(out.join("run.json"))["units_from"][0]["tidied"] == true;
+    let resume = |out: &Path, extra: &[&str]| {
+        let o = bin().args(["search", "--resume"]).arg(out).args(extra).output().unwrap();
+        ok(&o);
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+
+    // Two generations, finished and tidied, then extended to four but stopped by its budget before
+    // any of them: the resume took the removed units again first.
+    random(&cut, "2");
+    let first = tidy(&cut);
+    assert!(tidied(&cut) && !first.contains("resume takes them again"), "{first}");
+    let err = resume(&cut, &["--generations", "4", "--max-hours", "1e-300"]);
+    assert!(err.contains("units taken again") && !tidied(&cut), "{err}");
+    assert_eq!(json(cut.join("state.json"))["state"], "interrupted");
+    assert_eq!(generations(&cut).len(), 2);
+
+    // Stopped before its end: only copies the GA run holds too go, and what it computed stays.
+    let before: Vec<_> = std::fs::read_dir(cut.join("units")).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let second = tidy(&cut);
+    assert!(second.contains("resume takes them again") && tidied(&cut), "{second}");
+    let after: std::collections::HashSet<_> =
+        std::fs::read_dir(cut.join("units")).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert!(after.len() < before.len(), "{second}");
+    for f in before.iter().filter(|f| !after.contains(*f)) {
+        assert!(ga.join("units").join(f).is_file(), "{f:?} was computed by the search, yet removed");
+    }
+
+    // Resumed to its end: the same generations and unit files as the search never tidied, and
+    // the GA's units taken, not computed again (a unit computed again records another wall time).
+    let err = resume(&cut, &["--quiet"]);
+    assert!(!tidied(&cut), "{err}");
+    let strip = |g: Vec<Value>| {
+        g.into_iter()
+            .map(|r| (r["individuals"].clone(), r["stats"].clone(), r["new_units"].clone()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(strip(generations(&cut)), strip(generations(&whole)));
+    let names = |run: &Path| {
+        let mut v: Vec<_> = std::fs::read_dir(run.join("units")).unwrap().map(|e| e.unwrap().file_name()).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names(&cut), names(&whole));
+    for f in names(&ga) {
+        assert_eq!(
+            std::fs::read(cut.join("units").join(&f)).unwrap(),
+            std::fs::read(ga.join("units").join(&f)).unwrap(),
+            "{f:?}"
+        );
+    }
+}

@@ -179,7 +179,8 @@ pub struct StampArgs {
 /// `bfqi-ga tidy`.
 #[derive(Debug, Args)]
 pub struct TidyArgs {
-    /// A finished search run directory.
+    /// A search run directory: finished, or (if it took units with --units-from) stopped, to keep
+    /// or commit it between sessions; its resume takes the removed copies again.
     pub dir: PathBuf,
     /// Only count what would be removed.
     #[arg(long)]
@@ -412,6 +413,9 @@ pub(super) fn tidy(a: TidyArgs) -> Result<Outcome> {
         t.bytes as f64 / 1e6,
         t.kept
     );
+    if t.partial && t.removed > 0 {
+        println!("it has not reached its end: they were taken copies, and its resume takes them again");
+    }
     Ok(Outcome::Success)
 }
 

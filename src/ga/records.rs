@@ -65,6 +65,10 @@ pub struct SharedUnits {
     /// Validation units copied likewise (absent in runs made before they were).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub validation: usize,
+    /// `bfqi-ga tidy` removed taken units the search had not used: the next resume takes them
+    /// again from `dir` before it goes on, so they are not recomputed.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub tidied: bool,
 }
 
 fn is_zero(n: &usize) -> bool {

@@ -22,7 +22,7 @@ pub use super::records::{
 pub use super::reproduce::{Reproduction, reproduce};
 use super::runner::{Clock, Runner, StateInfo, write_state};
 pub use super::setup::{
-    SearchOverrides, check_units_from, create, extend, load_spec, prepare, resolve, share_units, stamp,
+    SearchOverrides, check_units_from, create, extend, load_spec, prepare, resolve, retake_units, share_units, stamp,
 };
 use super::units::setting_id;
 pub use super::units::{Evaluator, UnitResult, describe, parse_unit_id, unit_id};
@@ -136,6 +136,7 @@ pub fn run(dir: &Path, exec: &dyn Executor, budget: &Budget<'_>, quiet: bool) ->
     // atomic writes are removed (the lock is ours, so no writer is alive).
     store::remove_temporaries(dir)?;
     UnitStore::units(dir).prepare()?;
+    retake_units(dir, quiet)?;
     // Whatever ends the run with an error, state.json says so (it would read `running`).
     let ending = run_to_end(dir, &spec, exec, budget, quiet).inspect_err(|e| {
         let text = e.to_string();

@@ -37,9 +37,49 @@ pub fn share_units(dir: &Path, from: &Path) -> Result<usize> {
     let validation = copy_units(&spec, &source, dir, from, super::units::Role::Validation)?;
     let path = dir.join("run.json");
     let mut info: RunInfo = store::read_json(&path)?;
-    info.units_from.push(super::records::SharedUnits { dir: from.display().to_string(), units: copied, validation });
+    info.units_from.push(super::records::SharedUnits {
+        dir: from.display().to_string(),
+        units: copied,
+        validation,
+        tidied: false,
+    });
     write_json(&path, &info)?;
     Ok(copied)
+}
+
+/// Takes again the units `bfqi-ga tidy` removed from the search in `dir` (the runs `run.json`
+/// marks `tidied`), skipping those it holds, and clears the mark: called as a search resumes, so
+/// a search tidied before its end (to be kept or committed at the size of what it has used) goes
+/// on exactly as if it had never been. A run gone since is said, and what it held is computed
+/// (the same numbers, at their cost). Returns the unit files taken. Call it with the lock held.
+pub fn retake_units(dir: &Path, quiet: bool) -> Result<usize> {
+    let path = dir.join("run.json");
+    let mut info: RunInfo = store::read_json(&path)?;
+    if !info.units_from.iter().any(|u| u.tidied) {
+        return Ok(0);
+    }
+    let spec = load_spec(dir)?;
+    let mut taken = 0;
+    for shared in info.units_from.iter_mut().filter(|u| u.tidied) {
+        let from = Path::new(&shared.dir);
+        match load_spec(from) {
+            Ok(source) => {
+                for role in [super::units::Role::Search, super::units::Role::Validation] {
+                    taken += copy_units(&spec, &source, dir, from, role)?;
+                }
+            }
+            Err(e) if !quiet => {
+                eprintln!("warning: {e}: the units tidy removed are computed again instead of taken from it");
+            }
+            Err(_) => {}
+        }
+        shared.tidied = false;
+    }
+    write_json(&path, &info)?;
+    if !quiet && taken > 0 {
+        eprintln!("{taken} units taken again (tidy had removed them)");
+    }
+    Ok(taken)
 }
 
 /// Copies the verified units of `role` from the run `from` (of spec `source`) into the search in
