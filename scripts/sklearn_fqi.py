@@ -43,7 +43,7 @@ data = np.loadtxt(a.csv, delimiter=",", skiprows=1)
 col = {h: i for i, h in enumerate(header)}
 x = data[:, [i for h, i in col.items() if h.startswith("state_")]]
 xn = data[:, [i for h, i in col.items() if h.startswith("next_state_")]]
-act, r, absorbing = data[:, col["action"]], data[:, col["reward"]], data[:, col["absorbing"]]
+act, r, absorbing = data[:, col["action"]], data[:, col["reward"]], data[:, col["terminated"]]
 actions = [float(v) for v in a.actions.split(",")]
 n, n_act = len(r), len(actions)
 

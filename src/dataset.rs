@@ -9,10 +9,9 @@ use crate::env::gymnasium::{self, RawEpisode};
 use crate::env::{Env, GymConfig, MAX_STATE};
 use crate::error::{Error, Result};
 use crate::rng::{self, stream};
-use crate::store::write_atomic;
 use rayon::prelude::*;
-use std::io::Write;
-use std::path::Path;
+
+pub mod table;
 
 /// Transitions of N episodes, one array per field. Observations are what learners see
 /// (`obs_dim` values per row, row-major).
@@ -73,34 +72,6 @@ impl Dataset {
         self.reward.extend(other.reward);
         self.next_state.extend(other.next_state);
         self.absorbing.extend(other.absorbing);
-    }
-
-    /// Writes the dataset as CSV: a header
-    /// `episode,step,state_0,…,action,reward,next_state_0,…,absorbing`, floats in their shortest
-    /// round-trip form, `absorbing` as 0/1. The file is written atomically.
-    pub fn write_csv(&self, path: &Path) -> Result<()> {
-        write_atomic(path, |w| {
-            let d = self.obs_dim;
-            let mut header = vec!["episode".to_string(), "step".to_string()];
-            header.extend((0..d).map(|i| format!("state_{i}")));
-            header.extend(["action".to_string(), "reward".to_string()]);
-            header.extend((0..d).map(|i| format!("next_state_{i}")));
-            header.push("absorbing".to_string());
-            writeln!(w, "{}", header.join(","))?;
-            for i in 0..self.len() {
-                write!(w, "{},{}", self.episode[i], self.step[i])?;
-                for v in &self.state[i * d..(i + 1) * d] {
-                    write!(w, ",{v:?}")?;
-                }
-                // Display prints integral actions (indices) as `3`, torques in full.
-                write!(w, ",{},{:?}", self.action[i], self.reward[i])?;
-                for v in &self.next_state[i * d..(i + 1) * d] {
-                    write!(w, ",{v:?}")?;
-                }
-                writeln!(w, ",{}", u8::from(self.absorbing[i]))?;
-            }
-            Ok(())
-        })
     }
 }
 

@@ -37,7 +37,7 @@ fn csv_has_the_documented_schema_and_round_trips_floats() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next().unwrap(),
-        "episode,step,state_0,state_1,state_2,action,reward,next_state_0,next_state_1,next_state_2,absorbing"
+        "episode,step,state_0,state_1,state_2,action,reward,next_state_0,next_state_1,next_state_2,terminated,truncated"
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 400);
@@ -52,13 +52,15 @@ fn csv_has_the_documented_schema_and_round_trips_floats() {
         assert_eq!(r[6].parse::<f64>().unwrap(), d.reward[i]);
         assert_eq!(r[9].parse::<f64>().unwrap(), d.next_state[i * 3 + 2]);
         assert_eq!(r[10], "0");
+        // The pendulum never fails: each episode's last transition is its horizon's cut.
+        assert_eq!(r[11], if (i + 1) % 200 == 0 { "1" } else { "0" }, "row {i}");
     }
     // Torques are continuous in [-2, 2).
     assert!(rows.iter().all(|r| r[5].parse::<f64>().unwrap().abs() <= 2.0));
 }
 
 #[test]
-fn cartpole_actions_are_indices_and_failures_absorbing() {
+fn cartpole_actions_are_indices_and_failures_terminate() {
     let d = tmp("cartpole");
     let p = d.join("cartpole.csv");
     assert!(dataset(&["cartpole", "--episodes", "20"], &p).status.success());
@@ -88,6 +90,8 @@ fn bad_input_is_a_one_line_error_with_exit_code_2() {
         &["dataset", "cartpole", "--episodes", "5", "--out", "/nonexistent-dir/x.csv"],
         "/nonexistent-dir/x.csv",
     );
+    assert_bad_input(&["dataset", "cartpole", "--episodes", "5", "--out", "x.txt"], "invalid --out = x.txt");
+    assert!(!Path::new("x.txt").exists());
 }
 
 #[test]
@@ -102,5 +106,19 @@ fn help_lists_every_subcommand_and_envs_lists_every_environment() {
     let s = String::from_utf8_lossy(&o.stdout);
     for name in ["pendulum", "cartpole", "bicycle", "reward_factor=15.0", "gamma 0.98"] {
         assert!(s.contains(name), "envs lacks {name}: {s}");
+    }
+}
+
+#[test]
+fn parquet_and_csv_files_read_back_to_the_dataset_runs_learn_from() {
+    let d = tmp("formats");
+    let env = bfqi_ga::env::EnvConfig::by_name("cartpole").unwrap();
+    let seed = bfqi_ga::dataset::dataset_seed(5, bfqi_ga::dataset::Role::Search, 2);
+    let want = bfqi_ga::dataset::collect(env.env(), 30, seed).unwrap();
+    for name in ["c.parquet", "c.csv"] {
+        let p = d.join(name);
+        let o = dataset(&["cartpole", "--episodes", "30", "--seed", "5", "--role", "search", "--index", "2"], &p);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(bfqi_ga::dataset::table::read(&p).unwrap(), want, "{name}");
     }
 }

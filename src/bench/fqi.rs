@@ -130,7 +130,7 @@ pub fn fqi(python: Option<&Path>, json: bool) -> Result<Value> {
         let measured_reference = match &py_ref {
             Some(py) => {
                 let csv = py.file(&format!("{env}.csv"));
-                d.write_csv(&csv)?;
+                crate::dataset::table::write(&d, &csv)?;
                 let actions: Vec<String> = e.actions().iter().map(|a| a.to_string()).collect();
                 let args = [
                     csv.display().to_string(),

@@ -58,7 +58,7 @@ fn bench_et(
 
     let reference = if let Some(reference) = reference {
         let csv = reference.file(&format!("{env}.csv"));
-        d.write_csv(&csv)?;
+        crate::dataset::table::write(&d, &csv)?;
         let args = vec![
             csv.display().to_string(),
             "--trees".into(),
@@ -149,7 +149,7 @@ pub fn learners(python: Option<&std::path::Path>, json: bool) -> Result<Value> {
     let keras = if let Some(reference) = reference {
         let csv = reference.file("bicycle.csv");
         if !csv.exists() {
-            d.write_csv(&csv)?;
+            crate::dataset::table::write(&d, &csv)?;
         }
         let args =
             [csv.display().to_string(), "--hidden".into(), "10,10".into(), "--activation".into(), "sigmoid".into()];

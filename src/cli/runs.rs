@@ -26,7 +26,9 @@ pub struct DatasetArgs {
     /// Index of the dataset within its role.
     #[arg(long, default_value_t = 0)]
     pub index: usize,
-    /// Output CSV (written atomically).
+    /// Output file, Parquet (`.parquet`) or CSV (`.csv`), written atomically: one row per
+    /// transition (episode, step, state_i, action, reward, next_state_i, terminated, truncated),
+    /// the columns a spec's `data.file` reads.
     #[arg(long)]
     pub out: PathBuf,
 }
@@ -100,9 +102,14 @@ pub struct WorkerArgs {
 pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
     let env = if NAMES.contains(&a.env.as_str()) { EnvConfig::by_name(&a.env)? } else { Spec::resolve(&a.env)?.0.env };
     anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    anyhow::ensure!(
+        crate::table::Format::of_path(&a.out).is_some(),
+        "invalid --out = {}: the name must end in .parquet, .pq or .csv",
+        a.out.display()
+    );
     crate::limits::episodes("--episodes", a.episodes, env.env().horizon())?;
     let d = dataset::collect(env.env(), a.episodes, dataset_seed(a.seed, a.role, a.index))?;
-    d.write_csv(&a.out)?;
+    dataset::table::write(&d, &a.out)?;
     eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
     Ok(Outcome::Success)
 }
