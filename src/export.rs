@@ -68,7 +68,11 @@ pub fn export(dir: &Path, to: &Destination) -> Result<usize> {
         Destination::File(path, format) => crate::table::write(&t, path, *format)?,
         Destination::Stdout => {
             let mut out = std::io::stdout().lock();
-            crate::table::csv::write_to(&t, &mut out).map_err(|e| Error::io("standard output", e))?;
+            match crate::table::csv::write_to(&t, &mut out) {
+                // The reader stopped reading (`| head`): it has what it wanted, as with any filter.
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {}
+                other => other.map_err(|e| Error::io("standard output", e))?,
+            }
         }
     }
     Ok(t.rows())

@@ -251,3 +251,22 @@ print(json.dumps(out))
         }
     }
 }
+
+#[test]
+fn a_reader_that_stops_early_ends_the_export_quietly() {
+    // `bfqi-ga export RUN --format csv --out - | head -1`: the closed pipe is not an error.
+    use std::io::{BufRead, BufReader};
+    let run = committed("cartpole-compare-mlp-complexity");
+    let mut child = bin()
+        .args(["export", run.to_str().unwrap(), "--format", "csv", "--out", "-"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut header = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut header).unwrap();
+    assert!(header.starts_with("run,"), "{header}");
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{:?}: {}", o.status, String::from_utf8_lossy(&o.stderr));
+    assert!(o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
+}
