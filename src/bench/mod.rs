@@ -7,7 +7,8 @@
 //!   of a whole search;
 //! - `bench dashboard` times the requests of a search page's first paint on the committed bicycle
 //!   search, and the memory serving them takes;
-//! - `bench gym` times the gymnasium bridge against the built-in cart-pole on the same jobs.
+//! - `bench gym` times the gymnasium bridge against the built-in cart-pole on the same jobs;
+//! - `bench data` times reading a million logged transitions from Parquet and CSV.
 //!
 //! Given a Python (`--python PY`) with scikit-learn, or Keras 3 and JAX, each also runs the
 //! reference a researcher would otherwise use on the same data in the same run, for ratios that a
@@ -19,12 +20,14 @@ mod fqi;
 mod gym;
 mod learners;
 mod levels;
+mod logged;
 mod search;
 
 pub use dashboard::dashboard;
 pub use fqi::fqi;
 pub use gym::gym;
 pub use learners::learners;
+pub use logged::logged;
 pub use search::{SearchBench, search};
 
 use crate::dataset::{self, Dataset, dataset_seed};
@@ -48,6 +51,8 @@ pub enum Target {
     /// The gymnasium bridge (CartPole-v1) against the built-in cart-pole: collection, evaluation,
     /// a search unit and its share in Python.
     Gym,
+    /// Reading one million logged transitions from Parquet and CSV, against copying them.
+    Data,
 }
 
 /// The reference scripts, by file name (the copies in `scripts/`).

@@ -62,7 +62,8 @@ pub struct BenchArgs {
     #[arg(long)]
     pub json: bool,
     /// A Python to run the reference side by side (`learners`: scikit-learn, keras and jax;
-    /// `fqi`: scikit-learn; `search`: keras and jax). The scripts are built into the binary.
+    /// `fqi`: scikit-learn; `search`: keras and jax; `data`: pandas and pyarrow). The scripts are
+    /// built into the binary.
     #[arg(long)]
     pub python: Option<PathBuf>,
     /// `search`: one environment name or spec file (default: all three, at their default specs).
@@ -212,6 +213,7 @@ pub(super) fn bench(a: BenchArgs) -> Result<Outcome> {
         Target::Fqi => bench::fqi(a.python.as_deref(), a.json)?,
         Target::Dashboard => bench::dashboard(a.json)?,
         Target::Gym => bench::gym(a.json)?,
+        Target::Data => bench::logged(a.python.as_deref(), a.json)?,
         Target::Search => {
             anyhow::ensure!(
                 a.cap_seconds.is_finite() && a.cap_seconds > 0.0,
