@@ -309,3 +309,42 @@ fn validate_into_races_a_finished_search_apart_and_leaves_its_files_as_they_are(
     assert!(!d.path().join("slurm").exists());
     assert!(before == snapshot(&run));
 }
+
+#[test]
+fn a_raced_search_that_took_units_counts_only_those_its_individuals_used() {
+    // The full search's store holds every dataset of each setting; a raced-out individual of the
+    // search that takes them uses only its first datasets, and `new_units` (generations.jsonl,
+    // status, the baseline report) counts what was used, as report.md's `new units` does.
+    let d = tmp("taken-new-units");
+    let wide = ["--datasets", "8", "--generations", "4", "--population", "8", "--seed", "3"];
+    let full = d.path().join("full");
+    ok(&bin().args(["search", "cartpole", "--out"]).arg(&full).args(tiny_with(&wide)).output().unwrap());
+    let raced = d.path().join("raced");
+    // The race-search preset's rule, on the 8 datasets (the quick preset has 3, too few for it).
+    let race = serde_json::json!({"datasets": 8, "race": {"test": "wilcoxon", "confidence": 0.95, "first": 5}});
+    let p = preset(d.path(), "race8", race);
+    let mut c = bin();
+    c.args(["search", "cartpole", "--out"]).arg(&raced).args(tiny_with(&wide));
+    ok(&c.arg("--preset").arg(&p).arg("--units-from").arg(&full).output().unwrap());
+    let generations: Vec<Value> =
+        read(raced.join("generations.jsonl")).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let mut seen = std::collections::HashSet::new();
+    let mut short = 0;
+    for g in &generations {
+        let mut new = 0;
+        for i in g["individuals"].as_array().unwrap() {
+            let n = i["scores"].as_array().unwrap().len();
+            short += usize::from(n < 8);
+            for k in 0..n {
+                new += usize::from(seen.insert(format!("{}.d{k}", i["setting"].as_str().unwrap())));
+            }
+        }
+        assert_eq!(g["new_units"].as_u64().unwrap() as usize, new, "generation {}", g["generation"]);
+    }
+    assert!(short > 0, "no individual was raced out: the check would not see the difference");
+    let report = read(raced.join("report.md"));
+    for g in &generations {
+        let row = format!("| {} | {} |", g["generation"], g["new_units"]);
+        assert!(report.contains(&row), "{row} not in the report");
+    }
+}

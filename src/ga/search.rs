@@ -352,11 +352,12 @@ fn run_generations(dir: &Path, spec: &Spec, exec: &dyn Executor, budget: &Budget
             individuals[i].shares_with =
                 (0..individuals.len()).filter(|&j| j != i && individuals[j].setting == key).collect();
         }
+        // The units the individuals' scores used, as the report counts them: not every stored one,
+        // since a search with --units-from holds units a raced-out setting never ran.
         let mut new_units = 0;
-        for x in &distinct {
-            for d in 0..s.datasets {
-                let id = unit_id(x, d);
-                if ev.load_unit(&id).is_some() && seen.insert(id) {
+        for ind in &individuals {
+            for d in 0..ind.scores.len() {
+                if seen.insert(unit_id(&ind.decoded, d)) {
                     new_units += 1;
                 }
             }
