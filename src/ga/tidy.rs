@@ -4,8 +4,7 @@
 //! what it used; its records, report and validation read only those. Before its end, only taken
 //! copies go, and the resume takes them again.
 
-use super::records::RunInfo;
-use super::records::read_generations;
+use super::records::{RunInfo, read_generations};
 use crate::error::{Error, Result};
 use crate::store::{RunLock, read_json, write_json};
 use std::collections::BTreeSet;
