@@ -91,6 +91,9 @@ pub struct CompareConfig {
     pub learners: Vec<LearnerPlan>,
     /// The tuned config the networks use.
     pub tuned: TunedConfig,
+    /// The spec's logged data, when it learns from some instead of collecting datasets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<crate::dataset::DataSource>,
 }
 
 /// The network of a preset with a tuned config's activation and early stopping.
@@ -163,7 +166,8 @@ impl CompareConfig {
             }
             plans.push(plan);
         }
-        let c = CompareConfig { env: spec.env.clone(), seed: spec.seed, analyses, learners: plans, tuned };
+        let data = spec.data.clone();
+        let c = CompareConfig { env: spec.env.clone(), seed: spec.seed, analyses, learners: plans, tuned, data };
         c.validate()?;
         Ok(c)
     }
@@ -242,6 +246,7 @@ impl CompareConfig {
             episodes: u.episodes,
             datasets: u.dataset + 1,
             seed: self.seed,
+            data: self.data.clone(),
         }
     }
 

@@ -11,7 +11,26 @@ use crate::error::{Error, Result};
 use crate::rng::{self, stream};
 use rayon::prelude::*;
 
+pub mod logged;
 pub mod table;
+
+pub use logged::DataSource;
+
+/// Dataset `index` of a role: from the logged data when a spec names some (`data`), else
+/// `episodes` random-policy episodes collected from the dataset's seed under `master`.
+pub fn make(
+    env: &dyn Env,
+    data: Option<&DataSource>,
+    episodes: usize,
+    master: u64,
+    role: Role,
+    index: usize,
+) -> Result<Dataset> {
+    match data {
+        Some(d) => d.dataset(master, role, index, episodes),
+        None => collect(env, episodes, dataset_seed(master, role, index)),
+    }
+}
 
 /// Transitions of N episodes, one array per field. Observations are what learners see
 /// (`obs_dim` values per row, row-major).

@@ -41,6 +41,9 @@ pub struct RunConfig {
     pub datasets: usize,
     /// Master seed.
     pub seed: u64,
+    /// The spec's logged data, when it learns from some instead of collecting datasets.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<dataset::DataSource>,
 }
 
 impl RunConfig {
@@ -56,6 +59,7 @@ impl RunConfig {
             episodes: p.episodes,
             datasets: p.datasets,
             seed,
+            data: None,
         }
     }
 
@@ -69,6 +73,9 @@ impl RunConfig {
         ensure(self.eval_every >= 1, "eval_every", self.eval_every, "must be ≥ 1")?;
         limits::episodes("episodes", self.episodes, self.env.env().horizon())?;
         limits::within("datasets", self.datasets, 1, DATASETS)?;
+        if let Some(d) = &self.data {
+            d.check(dataset::Role::Compare, self.datasets, self.episodes)?;
+        }
         match &self.learner {
             LearnerConfig::Mlp(net) => crate::spec::holdout(net, self.episodes, self.env.env().horizon(), "episodes")
                 .map_err(|e| e.within("learner")),
@@ -155,6 +162,7 @@ impl RunOverrides {
     pub fn config(&self, spec_name: &str) -> Result<RunConfig> {
         let (spec, _) = Spec::resolve(spec_name)?;
         let mut cfg = RunConfig::from_preset(spec.env.clone(), spec.seed, self.algorithm, spec.preset(self.learner));
+        cfg.data = spec.data.clone();
         match &mut cfg.learner {
             LearnerConfig::ExtraTrees(p) => {
                 let mlp_flag = [self.hidden.is_some(), self.activation.is_some(), self.delta_min.is_some()];
@@ -278,7 +286,7 @@ pub struct RunReport {
 /// from, and what a comparison's work is counted against ([`crate::work`]).
 pub fn encoded_dataset(cfg: &RunConfig, index: usize) -> Result<(Dataset, Encoded)> {
     let env = cfg.env.env();
-    let data = dataset::collect(env, cfg.episodes, cfg.dataset_seed(index))?;
+    let data = dataset::make(env, cfg.data.as_ref(), cfg.episodes, cfg.seed, dataset::Role::Compare, index)?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
         crate::error::Error::Data(m) => {
             crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))

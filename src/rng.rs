@@ -139,6 +139,11 @@ pub mod purpose {
     pub const ENV_CHECK: &str = "env/check";
     /// Whether an environment's dataset actions are discrete, from seed 0: `[]`.
     pub const ENV_CHECK_ACTIONS: &str = "env/check-actions";
+    /// The permutation of a logged file's episodes a `disjoint` split deals, from the master
+    /// seed: `[]`.
+    pub const DATA_SPLIT: &str = "data/split";
+    /// The episodes a `bootstrap` split draws for a dataset, from the dataset's seed: `[]`.
+    pub const DATA_BOOTSTRAP: &str = "data/bootstrap";
 }
 
 #[cfg(test)]

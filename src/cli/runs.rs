@@ -1,7 +1,7 @@
 //! Single runs and tools: `run`, `dataset`, `envs`, `bench`, and `worker` (a Slurm task).
 
 use super::Outcome;
-use crate::dataset::{self, Role, dataset_seed};
+use crate::dataset::{self, Role};
 use crate::env::{EnvConfig, NAMES};
 use crate::experiment::{self, RunOverrides};
 use crate::spec::Spec;
@@ -14,7 +14,7 @@ use std::path::PathBuf;
 pub struct DatasetArgs {
     /// Environment: pendulum, cartpole or bicycle, or a spec file (e.g. of a gymnasium env).
     pub env: String,
-    /// Number of random-policy episodes.
+    /// Number of episodes: random-policy ones, or taken from a spec's logged data (`data`).
     #[arg(long)]
     pub episodes: usize,
     /// Master seed: the file is dataset INDEX of ROLE under this seed, exactly as runs use it.
@@ -101,7 +101,12 @@ pub struct WorkerArgs {
 }
 
 pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
-    let env = if NAMES.contains(&a.env.as_str()) { EnvConfig::by_name(&a.env)? } else { Spec::resolve(&a.env)?.0.env };
+    let (env, data) = if NAMES.contains(&a.env.as_str()) {
+        (EnvConfig::by_name(&a.env)?, None)
+    } else {
+        let spec = Spec::resolve(&a.env)?.0;
+        (spec.env, spec.data)
+    };
     anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
     anyhow::ensure!(
         crate::table::Format::of_path(&a.out).is_some(),
@@ -109,7 +114,7 @@ pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
         a.out.display()
     );
     crate::limits::episodes("--episodes", a.episodes, env.env().horizon())?;
-    let d = dataset::collect(env.env(), a.episodes, dataset_seed(a.seed, a.role, a.index))?;
+    let d = dataset::make(env.env(), data.as_ref(), a.episodes, a.seed, a.role, a.index)?;
     dataset::table::write(&d, &a.out)?;
     eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
     Ok(Outcome::Success)

@@ -246,7 +246,12 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
     // Each layer is validated as written, so an error names the file that holds it: the spec
     // file alone, then after each preset (naming the preset), then after the flags.
     let (mut value, origin) = Spec::resolve_value(spec_name)?;
-    Spec::from_value(value.clone(), &origin)?;
+    let file = Spec::from_value(value.clone(), &origin)?;
+    if let Some(d) = &file.data {
+        // The split is dealt by the spec file's own counts, never the flags' or presets': a
+        // search and a comparison of one spec file share one deal, so their datasets stay apart.
+        value["data"] = serde_json::to_value(d).expect("a spec serialises");
+    }
     let mut applied = Vec::new();
     for p in presets {
         let (patch, from) = crate::spec::load_preset(p)?;
@@ -294,6 +299,9 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
         other => other,
     };
     let mut spec = Spec::from_value(value.clone(), &origin).map_err(after)?;
+    spec.check_search_data()
+        .map_err(|e| Error::File { path: origin.clone(), message: e.to_string() })
+        .map_err(after)?;
     let env = spec.env.env().name().to_string();
     if !o.seed_config.is_empty() {
         // The flags' count is the flags' fault, not the spec file's.

@@ -258,7 +258,7 @@ impl Evaluator {
     fn collect(&self, d: usize) -> Result<(Dataset, Encoded)> {
         let env = self.spec.env.env();
         let s = &self.spec.search;
-        let data = dataset::collect(env, s.episodes, self.dataset_seed(d))?;
+        let data = dataset::make(env, self.spec.data.as_ref(), s.episodes, self.spec.seed, self.role.datasets(), d)?;
         let enc = Encoded::new(&data, env.actions(), s.actions).map_err(|e| match e {
             // An action missing from a tiny dataset is the episode count's doing.
             Error::Data(m) => Error::invalid(

@@ -166,6 +166,9 @@ pub fn write(dir: &Path) -> Result<usize> {
             String::new()
         }
     ));
+    if let Some(d) = &spec.data {
+        md.push_str(&format!("{}\n\n", d.describe()));
+    }
     let on = crate::machine::wall_suffix(&crate::machine::of_run(dir));
     md.push_str(&standing(state.as_ref(), &records, &on));
     md.push('\n');

@@ -305,6 +305,10 @@ impl Strategy {
 pub struct Spec {
     /// The environment; fields left out take their SPEC defaults.
     pub env: EnvConfig,
+    /// Logged transitions to learn from instead of random-policy episodes (beyond the thesis;
+    /// collected as SPEC §2 says when absent). See [`crate::dataset::logged`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub data: Option<crate::dataset::DataSource>,
     /// Master seed of every stream (SPEC §7).
     pub seed: u64,
     /// Settings of the original experiments.
@@ -559,6 +563,10 @@ impl Spec {
         // A gymnasium env's spaces are asked of its worker the first time (`env.probed`).
         spec.env.resolve().map_err(|e| file_error(origin, e.to_string()))?;
         spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
+        let needs = spec.data_needs();
+        if let Some(d) = &mut spec.data {
+            d.resolve(&spec.env, &needs).map_err(|e| file_error(origin, e.to_string()))?;
+        }
         Ok(spec)
     }
 
@@ -573,6 +581,34 @@ impl Spec {
     pub fn resolve(name_or_path: &str) -> Result<(Spec, PathBuf)> {
         let (value, origin) = Self::resolve_value(name_or_path)?;
         Ok((Self::from_value(value, &origin)?, origin))
+    }
+
+    /// What the spec asks of logged data: datasets per role, and its encodings.
+    fn data_needs(&self) -> crate::dataset::logged::Needs {
+        let (et, mlp, s) = (&self.experiments.et, &self.experiments.mlp, &self.search);
+        let samples = [et, mlp].into_iter().filter_map(|p| p.samples.as_ref()).map(|x| x.datasets);
+        crate::dataset::logged::Needs {
+            search: s.datasets,
+            validation: s.validate.as_ref().map_or(0, |v| v.datasets),
+            compare: samples.chain([et.datasets, mlp.datasets]).max().unwrap_or(0),
+            encodings: vec![
+                ("search.actions".into(), s.actions),
+                ("experiments.et.actions".into(), et.actions),
+                ("experiments.mlp.actions".into(), mlp.actions),
+            ],
+        }
+    }
+
+    /// Refuses a search whose search or validation datasets its logged data cannot give (see
+    /// [`crate::dataset::logged`]); nothing to check when it collects its datasets.
+    pub fn check_search_data(&self) -> Result<()> {
+        let Some(d) = &self.data else { return Ok(()) };
+        use crate::dataset::Role;
+        d.check(Role::Search, self.search.datasets, self.search.episodes)?;
+        match &self.search.validate {
+            Some(v) => d.check(Role::Validation, v.datasets, self.search.episodes),
+            None => Ok(()),
+        }
     }
 
     /// The preset of a learner.

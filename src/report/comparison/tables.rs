@@ -78,6 +78,9 @@ pub fn header(cfg: &CompareConfig) -> String {
         );
     }
     md.push_str("\n\n");
+    if let Some(d) = &cfg.data {
+        let _ = writeln!(md, "{}\n", d.describe());
+    }
     let _ = writeln!(
         md,
         "Scores are means over datasets with 95 % intervals (1.96·std/√n, population std); diverged runs are left out of the means and counted.\n"
