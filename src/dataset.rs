@@ -12,6 +12,7 @@ use crate::rng::{self, stream};
 use rayon::prelude::*;
 
 pub mod logged;
+pub mod minari;
 pub mod table;
 
 pub use logged::DataSource;

@@ -29,8 +29,12 @@ pub struct DatasetArgs {
     /// Output file, Parquet (`.parquet`) or CSV (`.csv`), written atomically: one row per
     /// transition (episode, step, state_i, action, reward, next_state_i, terminated, truncated),
     /// the columns a spec's `data.file` reads.
-    #[arg(long)]
-    pub out: PathBuf,
+    #[arg(long, required_unless_present = "minari")]
+    pub out: Option<PathBuf>,
+    /// Also (or instead) write the dataset as a new Minari dataset of this id
+    /// (`namespace/name-v0`, under `MINARI_DATASETS_PATH`), with a gymnasium env's spec.
+    #[arg(long, value_name = "ID")]
+    pub minari: Option<String>,
 }
 
 /// `bfqi-ga run`: presets come from the spec file's `experiments.<learner>`; flags override them.
@@ -108,15 +112,23 @@ pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
         (spec.env, spec.data)
     };
     anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
-    anyhow::ensure!(
-        crate::table::Format::of_path(&a.out).is_some(),
-        "invalid --out = {}: the name must end in .parquet, .pq or .csv",
-        a.out.display()
-    );
+    if let Some(out) = &a.out {
+        anyhow::ensure!(
+            crate::table::Format::of_path(out).is_some(),
+            "invalid --out = {}: the name must end in .parquet, .pq or .csv",
+            out.display()
+        );
+    }
     crate::limits::episodes("--episodes", a.episodes, env.env().horizon())?;
     let d = dataset::make(env.env(), data.as_ref(), a.episodes, a.seed, a.role, a.index)?;
-    dataset::table::write(&d, &a.out)?;
-    eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, a.out.display());
+    if let Some(out) = &a.out {
+        dataset::table::write(&d, out)?;
+        eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, out.display());
+    }
+    if let Some(id) = &a.minari {
+        dataset::minari::write(&d, &env, id)?;
+        eprintln!("wrote {} transitions of {} episodes as the Minari dataset {id}", d.len(), a.episodes);
+    }
     Ok(Outcome::Success)
 }
 

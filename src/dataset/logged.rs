@@ -25,7 +25,7 @@ use crate::learn::actions::ActionEncoding;
 use crate::rng::{self, stream};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// A spec's `data`: where the transitions come from instead of random-policy collection.
@@ -33,7 +33,11 @@ use std::sync::{Arc, Mutex, OnceLock};
 #[serde(deny_unknown_fields)]
 pub struct DataSource {
     /// A Parquet (`.parquet`, `.pq`) or CSV (`.csv`) file of logged transitions.
-    pub file: PathBuf,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub file: Option<PathBuf>,
+    /// Or a Minari dataset id, read with `minari.load_dataset` ([`super::minari`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub minari: Option<String>,
     /// How the logged episodes are shared out between datasets.
     #[serde(default)]
     pub split: Split,
@@ -119,6 +123,8 @@ struct Logged {
     /// Row of each episode's first transition, and the row count last.
     starts: Vec<usize>,
     hash: String,
+    /// What the Minari bridge said of a Minari dataset.
+    minari: Option<super::minari::Info>,
 }
 
 impl Logged {
@@ -127,42 +133,106 @@ impl Logged {
     }
 }
 
-/// The file read and hashed, once per process (again if its size or time changed).
-fn load(path: &Path) -> Result<Arc<Logged>> {
+/// The logged data read and hashed, once per process (a file again if its size or time changed).
+fn load(source: &DataSource, python: &str) -> Result<Arc<Logged>> {
     type Key = (PathBuf, u64, Option<std::time::SystemTime>);
     static CACHE: OnceLock<Mutex<HashMap<Key, Arc<Logged>>>> = OnceLock::new();
-    let meta = std::fs::metadata(path).map_err(|err| Error::Io { path: path.to_path_buf(), err })?;
-    if !meta.is_file() {
-        return Err(Error::File { path: path.to_path_buf(), message: "data.file must be a regular file".into() });
-    }
-    let key = (path.to_path_buf(), meta.len(), meta.modified().ok());
     let cache = CACHE.get_or_init(Default::default);
+    let key = match (&source.file, &source.minari) {
+        (Some(path), None) => {
+            let meta = std::fs::metadata(path).map_err(|err| Error::Io { path: path.to_path_buf(), err })?;
+            if !meta.is_file() {
+                return Err(Error::File {
+                    path: path.to_path_buf(),
+                    message: "data.file must be a regular file".into(),
+                });
+            }
+            (path.to_path_buf(), meta.len(), meta.modified().ok())
+        }
+        (None, Some(id)) => (PathBuf::from(format!("minari:{id}")), 0, None),
+        _ => {
+            return Err(Error::invalid(
+                "data",
+                "{…}",
+                "must give one of file (Parquet or CSV) and minari (a dataset id)",
+            ));
+        }
+    };
     if let Some(l) = cache.lock().expect("data cache").get(&key) {
         return Ok(l.clone());
     }
-    let bytes = std::fs::read(path).map_err(|err| Error::Io { path: path.to_path_buf(), err })?;
+    let (bytes, data, minari) = match (&source.file, &source.minari) {
+        (Some(path), _) => {
+            let bytes = std::fs::read(path).map_err(|err| Error::Io { path: path.to_path_buf(), err })?;
+            (bytes, super::table::read(path)?, None)
+        }
+        (_, Some(id)) => {
+            let (bytes, data, info) = super::minari::read(id, python)?;
+            (bytes, data, Some(info))
+        }
+        _ => unreachable!("checked above"),
+    };
     let hash = format!("{:016x}", crate::store::fnv1a(&bytes));
-    drop(bytes);
-    let data = super::table::read(path)?;
     if data.is_empty() {
-        return Err(Error::File { path: path.to_path_buf(), message: "holds no transitions".into() });
+        return Err(Error::invalid(source.field(), source.origin(), "holds no transitions"));
     }
     let mut starts: Vec<usize> =
         (0..data.len()).filter(|&r| r == 0 || data.episode[r] != data.episode[r - 1]).collect();
     starts.push(data.len());
-    let l = Arc::new(Logged { data, starts, hash });
+    let l = Arc::new(Logged { data, starts, hash, minari });
     cache.lock().expect("data cache").insert(key, l.clone());
     Ok(l)
 }
 
+/// The env spec a Minari dataset recorded, and its episode count, for `minari:<id>` on the
+/// command line.
+pub fn minari_env(id: &str) -> Result<(Option<super::minari::EnvSpec>, usize)> {
+    let source = DataSource::minari(id);
+    let l = load(&source, &super::minari::python(None))?;
+    Ok((l.minari.as_ref().and_then(|i| i.env.clone()), l.episodes()))
+}
+
 impl DataSource {
+    /// `{"minari": id}`, unresolved.
+    pub fn minari(id: &str) -> Self {
+        DataSource {
+            file: None,
+            minari: Some(id.into()),
+            split: Split::default(),
+            hash: None,
+            episodes: None,
+            slots: None,
+        }
+    }
+
+    /// The field that names the data: `data.file` or `data.minari`.
+    pub fn field(&self) -> &'static str {
+        if self.minari.is_some() { "data.minari" } else { "data.file" }
+    }
+
+    /// The file's path or the Minari dataset's id, for messages.
+    pub fn origin(&self) -> String {
+        match (&self.file, &self.minari) {
+            (Some(p), _) => p.display().to_string(),
+            (_, Some(id)) => id.clone(),
+            _ => "nothing".into(),
+        }
+    }
+
     /// Reads the file and fills `hash`, `episodes` and (for `disjoint`) `slots`; refuses, naming
     /// the field, a file that changed since they were recorded, observations that are not the
     /// env's, and logged actions a `per_action` encoding cannot learn. Whether the episodes suffice is [`Self::check`]ed by what uses a role's datasets (a
     /// search its search and validation datasets, a comparison its own), once its flags apply.
     pub fn resolve(&mut self, env: &EnvConfig, needs: &Needs) -> Result<()> {
-        let l = load(&self.file)?;
-        let file = self.file.display().to_string();
+        if self.file.is_some() == self.minari.is_some() {
+            return Err(Error::invalid(
+                "data",
+                if self.file.is_some() { "file and minari" } else { "neither file nor minari" },
+                "must give one of file (Parquet or CSV) and minari (a dataset id)",
+            ));
+        }
+        let l = load(self, &super::minari::python(Some(env)))?;
+        let file = self.origin();
         if let Some(h) = &self.hash
             && *h != l.hash
         {
@@ -180,9 +250,9 @@ impl DataSource {
         let e = env.env();
         if l.data.obs_dim != e.obs_dim() {
             return Err(Error::invalid(
-                "data.file",
+                self.field(),
                 &file,
-                format!("has {} state columns; {} observes {} values", l.data.obs_dim, e.name(), e.obs_dim()),
+                format!("has {} observation values; {} observes {} values", l.data.obs_dim, e.name(), e.obs_dim()),
             ));
         }
         let actions = e.actions();
@@ -227,10 +297,13 @@ impl DataSource {
             ),
             _ => "each dataset drawn with replacement (bootstrap)".into(),
         };
+        let from = match &self.minari {
+            Some(id) => format!("the Minari dataset `{id}`"),
+            None => format!("`{}`", self.origin()),
+        };
         format!(
-            "**Beyond the thesis: logged data.** Datasets come from `{}` ({} episodes, content hash {}), {how}; \
+            "**Beyond the thesis: logged data.** Datasets come from {from} ({} episodes, content hash {}), {how}; \
              not from random-policy collection (`data`).",
-            self.file.display(),
             self.episodes.unwrap_or(0),
             self.hash.as_deref().unwrap_or("?")
         )
@@ -239,7 +312,7 @@ impl DataSource {
     /// Refuses `datasets` datasets of `episodes` episodes of a role that the split cannot give,
     /// naming the data's fields and what would fit.
     pub fn check(&self, role: Role, datasets: usize, episodes: usize) -> Result<()> {
-        let file = self.file.display();
+        let file = self.origin();
         let logged = self.episodes.unwrap_or(0);
         match (self.split, self.slots) {
             (Split::Disjoint, Some(s)) => {
@@ -256,7 +329,7 @@ impl DataSource {
                 let each = logged / s.total().max(1);
                 if episodes > each {
                     return Err(Error::invalid(
-                        "data.file",
+                        self.field(),
                         file,
                         format!(
                             "holds {logged} episodes, dealt to {} disjoint datasets ({} search, {} validation, {} \
@@ -280,12 +353,12 @@ impl DataSource {
     /// Dataset `index` of a role, of `episodes` episodes, under master seed `master` (see the module
     /// documentation). Episodes are renumbered 0, 1, … in the order taken.
     pub fn dataset(&self, master: u64, role: Role, index: usize, episodes: usize) -> Result<Dataset> {
-        let l = load(&self.file)?;
+        let l = load(self, &super::minari::python(None))?;
         if self.hash.as_deref() != Some(l.hash.as_str()) {
             return Err(Error::invalid(
                 "data.hash",
                 self.hash.as_deref().unwrap_or("absent"),
-                format!("{} now hashes {}: it is not the data this spec was made from", self.file.display(), l.hash),
+                format!("{} now hashes {}: it is not the data this spec was made from", self.origin(), l.hash),
             ));
         }
         self.check(role, index + 1, episodes)?;
@@ -338,6 +411,7 @@ fn gather(l: &Logged, picked: &[usize]) -> Dataset {
 mod tests {
     use super::*;
     use crate::dataset::collect;
+    use std::path::Path;
 
     /// A cart-pole log of `episodes` episodes written to a fresh file, and its collected dataset.
     fn log(name: &str, episodes: usize) -> (PathBuf, Dataset) {
@@ -355,7 +429,7 @@ mod tests {
     }
 
     fn source(path: &Path, split: Split) -> DataSource {
-        DataSource { file: path.to_path_buf(), split, hash: None, episodes: None, slots: None }
+        DataSource { file: Some(path.to_path_buf()), minari: None, split, hash: None, episodes: None, slots: None }
     }
 
     /// The transitions of each episode of `d`, as rows of bits, to compare episodes exactly.
@@ -428,7 +502,7 @@ mod tests {
         // Observations of another env.
         let bicycle = EnvConfig::by_name("bicycle").unwrap();
         let e = source(&path, Split::Disjoint).resolve(&bicycle, &needs(1, 0, 1)).unwrap_err().to_string();
-        assert!(e.contains("data.file") && e.contains("state columns"), "{e}");
+        assert!(e.contains("data.file") && e.contains("observation values"), "{e}");
         // Actions outside the env's set cannot be learnt per action.
         let mut d = super::super::table::read(&path).unwrap();
         d.action[3] = 0.5;

@@ -476,6 +476,9 @@ impl Spec {
         if let Some(named) = template::from_name(name_or_path) {
             return named;
         }
+        if let Some(named) = template::from_minari(name_or_path) {
+            return named;
+        }
         if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
             let local = PathBuf::from(format!("searches/{name}.json"));
             if store::something_at(&local) {
@@ -493,7 +496,8 @@ impl Spec {
         Err(Error::UnknownEnv {
             name: name_or_path.to_string(),
             valid: format!(
-                "{}, gymnasium:<id> (any gymnasium env, e.g. gymnasium:Acrobot-v1) or the path of a spec file",
+                "{}, gymnasium:<id> (any gymnasium env, e.g. gymnasium:Acrobot-v1), minari:<dataset id> or the path of a \
+                 spec file",
                 crate::env::NAMES.join(", ")
             ),
         })

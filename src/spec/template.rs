@@ -53,6 +53,69 @@ pub(super) fn from_name(name: &str) -> Option<Result<(Value, PathBuf)>> {
     Some(complete(json!({"env": {"name": "gymnasium", "id": id}}), &origin).map(|v| (v, origin)))
 }
 
+/// The spec value `minari:<id>` stands for: the gymnasium env the dataset recorded, learning from
+/// the dataset (`data.minari`), completed as `gymnasium:<id>` is, its datasets sized to the data.
+pub(super) fn from_minari(name: &str) -> Option<Result<(Value, PathBuf)>> {
+    let id = crate::dataset::minari::named(name)?;
+    let origin = PathBuf::from(name);
+    let (env, logged_episodes) = match crate::dataset::logged::minari_env(id) {
+        Ok((Some(env), episodes)) => (env, episodes),
+        Ok((None, _)) => {
+            return Some(Err(Error::invalid(
+                "ENV",
+                name,
+                "the dataset records no env spec to evaluate in: write a spec with env and \"data\": {\"minari\": …}",
+            )));
+        }
+        Err(e) => return Some(Err(e)),
+    };
+    let mut e = json!({"name": "gymnasium", "id": env.id});
+    if !env.kwargs.is_empty() {
+        e["kwargs"] = Value::Object(env.kwargs);
+    }
+    if let Some(m) = env.max_episode_steps {
+        e["max_episode_steps"] = json!(m);
+    }
+    let completed = complete(json!({"env": e, "data": {"minari": id}}), &origin);
+    Some(completed.map(|mut v| {
+        fit_to_data(&mut v, logged_episodes);
+        (v, origin)
+    }))
+}
+
+/// Sizes a completed spec's datasets to a disjoint split of `episodes` logged episodes: every
+/// dataset's episodes (search, presets, the sample analysis's sizes) at most ⌊episodes / slots⌋,
+/// the slots being the spec's search, validation and comparison datasets. Left as they are when
+/// not even one episode per slot is there (the split's refusal then says so).
+fn fit_to_data(v: &mut Value, episodes: usize) {
+    let n = |p: &str| v.pointer(p).and_then(Value::as_u64).unwrap_or(0) as usize;
+    let compare = ["/experiments/et", "/experiments/mlp"]
+        .iter()
+        .flat_map(|p| [n(&format!("{p}/datasets")), n(&format!("{p}/samples/datasets"))])
+        .max()
+        .unwrap_or(0);
+    let slots = n("/search/datasets") + n("/search/validate/datasets") + compare;
+    let each = episodes / slots.max(1);
+    if each == 0 {
+        return;
+    }
+    for p in ["/search/episodes", "/experiments/et/episodes", "/experiments/mlp/episodes"] {
+        if let Some(x) = v.pointer_mut(p)
+            && x.as_u64().is_some_and(|e| e as usize > each)
+        {
+            *x = json!(each);
+        }
+    }
+    for p in ["/experiments/et/samples/sizes", "/experiments/mlp/samples/sizes"] {
+        if let Some(Value::Array(sizes)) = v.pointer_mut(p) {
+            sizes.retain(|x| x.as_u64().is_some_and(|e| e as usize <= each));
+            if sizes.is_empty() {
+                sizes.push(json!(each));
+            }
+        }
+    }
+}
+
 /// Completes a user's spec value whose env is a gymnasium env (anything else is returned as it
 /// is): probes the env, refuses a stale `env.probed`, records the probe, and when `seed`,
 /// `experiments` or `search` is left out, merges the spec over the template.
