@@ -223,3 +223,18 @@ make("bfqi/nan-v0", np.zeros((3, 4)), box, [1.0, float("nan")])
     // Its observations fit cart-pole's, but 1 episode cannot make the spec's datasets.
     refused(&with("bfqi/nospec-v0"), &["data.minari", "holds 1 episodes"]);
 }
+
+#[test]
+fn the_committed_minari_example_reproduces_from_its_committed_dataset() {
+    let Some(py) = minari_python() else { return };
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/minari");
+    let store = root.join("datasets");
+    // The tuned config re-trained from the committed dataset (its hash checked on the way).
+    let r = ok(&tool(&py, &store).arg("reproduce").arg(root.join("search/best.json")).output().unwrap());
+    assert!(r.contains("matches bit for bit"), "{r}");
+    // The committed reports say where their data came from.
+    for run in ["search", "compare"] {
+        let report = read(root.join(run).join("report.md"));
+        assert!(report.contains("the Minari dataset `bfqi/cartpole-random-v0` (500 episodes"), "{run}: {report}");
+    }
+}
