@@ -191,7 +191,7 @@ fn minari_data_that_cannot_be_learnt_is_refused_in_one_line() {
     let Some(py) = minari_python() else { return };
     let dir = empty_dir("minari", "refusals");
     let store = dir.join("datasets");
-    // Datasets made in Python: image observations, no env spec, a NaN reward.
+    // Datasets made in Python: image observations, no env spec, a NaN reward, dict observations.
     let code = r#"
 import numpy as np, gymnasium as gym, minari, warnings
 from minari.data_collector.episode_buffer import EpisodeBuffer
@@ -205,6 +205,7 @@ make("bfqi/image-v0", np.zeros((3, 2, 2), np.float32), gym.spaces.Box(0, 1, (2, 
 box = gym.spaces.Box(-np.inf, np.inf, (4,), np.float64)
 make("bfqi/nospec-v0", np.zeros((3, 4)), box, [1.0, 1.0])
 make("bfqi/nan-v0", np.zeros((3, 4)), box, [1.0, float("nan")])
+make("bfqi/dict-v0", {"a": np.zeros((3, 4))}, gym.spaces.Dict({"a": box}), [1.0, 1.0])
 "#;
     py_run(&py, &store, code);
     let dry = |target: &str| tool(&py, &store).args(["search", target, "--dry-run"]).output().unwrap();
@@ -219,6 +220,7 @@ make("bfqi/nan-v0", np.zeros((3, 4)), box, [1.0, float("nan")])
         tool(&py, &store).arg("search").arg(&p).arg("--dry-run").output().unwrap()
     };
     refused(&with("bfqi/image-v0"), &["data.minari", "image observations"]);
+    refused(&with("bfqi/dict-v0"), &["data.minari", "non-vector observations"]);
     refused(&with("bfqi/nan-v0"), &["data.minari", "non-finite", "episode 0"]);
     // Its observations fit cart-pole's, but 1 episode cannot make the spec's datasets.
     refused(&with("bfqi/nospec-v0"), &["data.minari", "holds 1 episodes"]);
