@@ -172,7 +172,7 @@ fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary
 #[test]
 fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
     // Every search job names its full-size reference, and `check` holds each to the same env,
-    // seed, episodes, iterations and network: the night preset changes only the GA's budget.
+    // seed, episodes, iterations and network: the lean preset changes only the GA's budget.
     let path = Path::new("searches/batches/one-night.json");
     let plan = bfqi_ga::batch::Plan::parse(&read(path), path).unwrap();
     assert_eq!(plan.jobs.len(), 6);
@@ -180,6 +180,15 @@ fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
     let text = read(path);
     for env in ["cartpole", "bicycle", "pendulum"] {
         assert!(text.contains(&format!("\"reference\": \"results/searches/{env}\"")), "{env} has no reference");
+    }
+    // Built on the lean search, taking the committed lean runs' units (the check above refuses a
+    // units_from whose units hash differs, so they are the same units).
+    for job in &plan.jobs {
+        if let bfqi_ga::batch::Job::Search(s) = job {
+            assert_eq!(s.presets, ["lean"], "{}", s.name);
+            let env = s.name.trim_start_matches("search-");
+            assert_eq!(s.units_from, Some(format!("results/searches/lean/lean-{env}")), "{}", s.name);
+        }
     }
 }
 
