@@ -112,7 +112,11 @@ impl fmt::Display for Stop {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Stop::Interrupted => write!(f, "interrupted"),
-            // `1e-300`, not the 300 digits of f64's Display.
+            // `1e-300`, not the 300 digits of f64's Display; `1.53`, not an `--until`'s 1.5316666666666667.
+            Stop::Budget(h) if *h >= 0.01 => {
+                let two = format!("{h:.2}");
+                write!(f, "time budget of {} h reached", two.trim_end_matches('0').trim_end_matches('.'))
+            }
             Stop::Budget(h) => write!(f, "time budget of {} h reached", crate::error::short_number(h.to_string())),
             Stop::Missing(n) => write!(f, "{n} unit(s) missing after evaluation"),
         }
@@ -170,6 +174,16 @@ mod tests {
         );
         flag.store(true, Ordering::SeqCst);
         assert_eq!(Budget::new(&flag, Some(0.0)).check(), Some(Stop::Interrupted));
+    }
+
+    #[test]
+    fn a_budget_reads_as_typed_or_to_two_decimals() {
+        let said = |h: f64| Stop::Budget(h).to_string();
+        assert_eq!(said(1.5316666666666667), "time budget of 1.53 h reached", "an --until's budget");
+        assert_eq!(said(2.0), "time budget of 2 h reached");
+        assert_eq!(said(0.5), "time budget of 0.5 h reached");
+        assert_eq!(said(0.000000001), "time budget of 0.000000001 h reached", "a tiny budget as typed");
+        assert_eq!(said(1e-300), "time budget of 1e-300 h reached");
     }
 
     #[test]

@@ -219,10 +219,11 @@ impl DataSource {
         }
     }
 
-    /// Reads the file and fills `hash`, `episodes` and (for `disjoint`) `slots`; refuses, naming
-    /// the field, a file that changed since they were recorded, observations that are not the
-    /// env's, and logged actions a `per_action` encoding cannot learn. Whether the episodes suffice is [`Self::check`]ed by what uses a role's datasets (a
-    /// search its search and validation datasets, a comparison its own), once its flags apply.
+    /// Reads the data and fills `hash`, `episodes` and (for `disjoint`) `slots`; refuses, naming
+    /// the field, data that changed since they were recorded, observations that are not the
+    /// env's, and logged actions a `per_action` encoding cannot learn. Whether the episodes
+    /// suffice is [`Self::check`]ed by what uses a role's datasets (a search its search and
+    /// validation datasets, a comparison its own), once its flags apply.
     pub fn resolve(&mut self, env: &EnvConfig, needs: &Needs) -> Result<()> {
         if self.file.is_some() == self.minari.is_some() {
             return Err(Error::invalid(
