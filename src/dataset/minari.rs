@@ -43,7 +43,7 @@ pub struct EnvSpec {
 pub fn python(env: Option<&EnvConfig>) -> String {
     match env.and_then(|e| e.env().gymnasium()) {
         Some(g) => g.python(),
-        None => std::env::var("BFQI_PYTHON").ok().filter(|p| !p.is_empty()).unwrap_or_else(|| "python3".into()),
+        None => crate::env::gymnasium::default_python(),
     }
 }
 

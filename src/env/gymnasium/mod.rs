@@ -255,13 +255,16 @@ struct Tables {
     eval: EvalConfig,
 }
 
+/// The Python a spec that names none runs: `$BFQI_PYTHON`, else `python3` (the gymnasium worker's
+/// and the Minari bridge's).
+pub fn default_python() -> String {
+    std::env::var("BFQI_PYTHON").ok().filter(|p| !p.is_empty()).unwrap_or_else(|| "python3".to_string())
+}
+
 impl GymConfig {
     /// The Python that runs the worker: `env.python`, else `$BFQI_PYTHON`, else `python3`.
     pub fn python(&self) -> String {
-        self.python
-            .clone()
-            .or_else(|| std::env::var("BFQI_PYTHON").ok().filter(|p| !p.is_empty()))
-            .unwrap_or_else(|| "python3".to_string())
+        self.python.clone().unwrap_or_else(default_python)
     }
 
     fn tables(&self) -> &Tables {
