@@ -49,6 +49,11 @@ pub struct CompareJob {
     pub name: String,
     /// Environment name or spec file.
     pub compare: String,
+    /// A finished comparison of the same thing under another tuned config (e.g. the one the full
+    /// search's winner drove, `results/searches/cartpole-compare-mlp-complexity`), whose work this
+    /// job's is set against in the summary.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<String>,
     /// What to compare, as `compare`'s flags.
     #[serde(flatten)]
     pub request: compare::Request,
@@ -85,9 +90,11 @@ impl<'de> Deserialize<'de> for CompareJob {
         struct Own {
             name: String,
             compare: String,
+            #[serde(default)]
+            reference: Option<String>,
         }
-        let (own, request): (Own, _) = split(d, &["name", "compare"])?;
-        Ok(CompareJob { name: own.name, compare: own.compare, request })
+        let (own, request): (Own, _) = split(d, &["name", "compare", "reference"])?;
+        Ok(CompareJob { name: own.name, compare: own.compare, reference: own.reference, request })
     }
 }
 
@@ -126,10 +133,14 @@ pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
                 if from {
                     r.tuned = "thesis".into();
                 }
-                match crate::spec::Spec::resolve(&c.compare) {
+                let cfg = match crate::spec::Spec::resolve(&c.compare) {
                     Ok((spec, _)) if from && spec.env.env().gymnasium().is_some() => stand_in(&spec, &r),
-                    _ => compare::resolve(&c.compare, &r).map(|_| ()),
-                }
+                    _ => compare::resolve(&c.compare, &r).map(|(cfg, _)| cfg),
+                };
+                cfg.and_then(|cfg| match &c.reference {
+                    Some(p) => crate::report::batch::check_compare_reference(&cfg, Path::new(p)),
+                    None => Ok(()),
+                })
             }
         };
         checked.map_err(|e| Error::File {
@@ -142,11 +153,11 @@ pub fn check(plan: &Plan, plan_path: &Path) -> Result<()> {
 
 /// Checks a `from:` comparison of a gymnasium env, which has no thesis optimum, with the
 /// cart-pole one's settings in place of the winner its search will find.
-fn stand_in(spec: &crate::spec::Spec, r: &compare::Request) -> Result<()> {
+fn stand_in(spec: &crate::spec::Spec, r: &compare::Request) -> Result<compare::CompareConfig> {
     let (mut t, _) = crate::tuned::TunedConfig::resolve("thesis", "cartpole")?;
     t.env = spec.env.env().name().to_string();
     t.spec = None;
-    compare::CompareConfig::new(spec, t, r.analysis.analyses(), &r.learner.learners(), r).map(|_| ())
+    compare::CompareConfig::new(spec, t, r.analysis.analyses(), &r.learner.learners(), r)
 }
 
 /// A job.
@@ -539,6 +550,24 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
         .collect();
     if !checks.is_empty() {
         md.push_str(&crate::report::batch::reference_section(dir, &checks));
+    }
+    let references: Vec<crate::report::batch::Referenced> =
+        plan.jobs
+            .iter()
+            .zip(states)
+            .filter_map(|(j, s)| match j {
+                Job::Search(SearchJob { reference: Some(r), .. })
+                | Job::Compare(CompareJob { reference: Some(r), .. }) => Some(crate::report::batch::Referenced {
+                    job: s.name.clone(),
+                    dir: s.dir.clone(),
+                    reference: r.clone(),
+                    finished: s.state == JobPhase::Finished,
+                }),
+                _ => None,
+            })
+            .collect();
+    if !references.is_empty() {
+        md.push_str(&crate::report::batch::work_section(dir, &references, plan.jobs.len()));
     }
     write_atomic(&dir.join("summary.md"), |w| std::io::Write::write_all(w, md.as_bytes()))?;
     crate::work::write(dir)

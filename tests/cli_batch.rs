@@ -142,12 +142,7 @@ fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary
         "{row}"
     );
     // The work cell: the two searches' reference hours as `bfqi-ga work` counts them, and their ratio.
-    let hours = |dir: &Path| {
-        let o = bin().arg("work").arg(dir).arg("--json").output().unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["reference_hours"].as_f64().unwrap()
-    };
-    let (jh, rh) = (hours(&out.join("s")), hours(&full));
+    let (jh, rh) = (reference_hours(&out.join("s")), reference_hours(&full));
     assert!(row.ends_with(&format!("| {jh:.2} / {rh:.2} h ({:.1} %) |", 100.0 * jh / rh)), "{row}");
 
     // `report` rebuilds the summary and the job's report from the records alone.
@@ -169,6 +164,63 @@ fn a_search_job_is_checked_against_its_reference_and_report_rebuilds_the_summary
     assert!(!d.join("b2").exists(), "a refused plan created its batch directory");
 }
 
+/// `bfqi-ga work --json`'s reference hours of a run.
+fn reference_hours(dir: &Path) -> f64 {
+    let o = bin().arg("work").arg(dir).arg("--json").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap()["reference_hours"].as_f64().unwrap()
+}
+
+#[test]
+fn a_compare_job_sets_its_work_against_its_reference_and_a_different_comparison_is_refused() {
+    let d = tmp("compare-reference");
+    // The reference: the job's comparison under another tuned config (the thesis optimum, where
+    // the job takes its search's winner).
+    let full = d.join("full");
+    let o = bin()
+        .args(["compare", "cartpole", "--tuned", "thesis", "--learner", "mlp", "--datasets", "2"])
+        .args(["--episodes", "30", "--iterations", "2", "--quiet", "--out"])
+        .arg(&full)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let job =
+        COMPARE.replace("\"iterations\": 2}", &format!("\"iterations\": 2, \"reference\": \"{}\"}}", full.display()));
+    let p = plan(&d, &[SEARCH, &job]);
+    let out = d.join("b");
+    let o = batch(&[p.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = read(out.join("summary.md"));
+    assert!(summary.contains("## Work against the references"), "{summary}");
+    // The row and the total, from the two runs' work as `bfqi-ga work` counts it; the search job
+    // has no reference, so the total is not the whole plan's.
+    let (jh, rh) = (reference_hours(&out.join("c")), reference_hours(&full));
+    let pct = format!("{:.1} %", 100.0 * jh / rh);
+    let row = summary.lines().find(|l| l.starts_with("| c | `")).unwrap_or_else(|| panic!("{summary}"));
+    assert_eq!(row, format!("| c | `{}` | {jh:.2} ref. h | {rh:.2} ref. h | {pct} |", full.display()));
+    let total = summary.lines().find(|l| l.starts_with("| **finished jobs** |")).unwrap();
+    assert!(total.starts_with("| **finished jobs** | 1 of 2 |") && total.ends_with(&format!("**{pct}** |")), "{total}");
+    assert!(summary.contains("counts the 1 finished job(s) with a reference, of the plan's 2"), "{summary}");
+
+    // A reference that compares something else (other episodes) is refused with the plan.
+    let other = job.replace("\"episodes\": 30", "\"episodes\": 31");
+    let p = plan(&d, &[SEARCH, &other]);
+    let o = batch(&[p.to_str().unwrap(), "--out", d.join("b2").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("job 2 (c)") && err.contains("field reference") && err.contains("its `learners` differs"),
+        "{err}"
+    );
+    assert!(!d.join("b2").exists(), "a refused plan created its batch directory");
+    // A search directory is not a comparison reference.
+    let search = job.replace(&full.display().to_string(), &out.join("s").display().to_string());
+    let p = plan(&d, &[SEARCH, &search]);
+    let o = batch(&[p.to_str().unwrap(), "--out", d.join("b3").to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("field reference: not a comparison run directory"), "{err}");
+}
+
 #[test]
 fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
     // Every search job names its full-size reference, and `check` holds each to the same env,
@@ -180,6 +232,15 @@ fn the_shipped_one_night_plan_checks_against_the_committed_full_searches() {
     let text = read(path);
     for env in ["cartpole", "bicycle", "pendulum"] {
         assert!(text.contains(&format!("\"reference\": \"results/searches/{env}\"")), "{env} has no reference");
+    }
+    // Every comparison names the committed full plan's comparison of its env (`check` holds it to
+    // the same analysis, learner, datasets, episodes and iterations), so the summary's total is
+    // the plan's work against the full plan's.
+    for job in &plan.jobs {
+        if let bfqi_ga::batch::Job::Compare(c) = job {
+            let r = c.reference.as_deref().unwrap_or_else(|| panic!("{} has no reference", c.name));
+            assert!(r.starts_with(&format!("results/searches/{}-compare-mlp-", c.compare)), "{}: {r}", c.name);
+        }
     }
     // Built on the lean search, taking the committed lean runs' units (the check above refuses a
     // units_from whose units hash differs, so they are the same units).

@@ -1,8 +1,10 @@
-//! A batch's check against full-size searches: each search job with a `reference` (a finished,
+//! A batch's check against full-size runs: each search job with a `reference` (a finished,
 //! validated search of the same spec, e.g. `results/searches/bicycle`) has its validated winner
 //! scored on the reference's validation datasets and set against the reference's validated
-//! winner's 95 % interval, as the one-night plan promises.
+//! winner's 95 % interval, as the one-night plan promises; each job with a reference, search or
+//! comparison, has its work set beside the reference's, and the plan's total beside theirs.
 
+use crate::compare::CompareConfig;
 use crate::error::{Error, Result};
 use crate::ga::setup::load_spec;
 use crate::ga::validate::{self, Entry, Validation};
@@ -40,6 +42,41 @@ pub fn check_reference(spec: &Spec, reference: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Refuses a comparison reference that does not compare what `cfg` compares under another tuned
+/// config: same env, seed, analyses, logged data and learners (episodes, iterations, datasets,
+/// complexities, network), the networks' activation and early stopping (δ_min, patience) aside.
+pub fn check_compare_reference(cfg: &CompareConfig, reference: &Path) -> Result<()> {
+    let refuse =
+        |message: String| Error::File { path: reference.to_path_buf(), message: format!("field reference: {message}") };
+    let theirs = crate::compare::load(reference).map_err(|e| refuse(format!("not a comparison run directory: {e}")))?;
+    let (mine, theirs) = (untuned(cfg), untuned(&theirs));
+    let keys: std::collections::BTreeSet<&String> = mine.keys().chain(theirs.keys()).collect();
+    match keys.into_iter().find(|k| mine.get(*k) != theirs.get(*k)) {
+        Some(k) => Err(refuse(format!(
+            "its `{k}` differs from this job's: a reference compares the same thing, only the tuned config \
+             (activation, delta_min, patience) may differ"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// A comparison's configuration without what the tuned config sets.
+fn untuned(cfg: &CompareConfig) -> serde_json::Map<String, serde_json::Value> {
+    let mut v = match value(cfg) {
+        serde_json::Value::Object(m) => m,
+        _ => serde_json::Map::new(),
+    };
+    v.remove("tuned");
+    for plan in v.get_mut("learners").and_then(|l| l.as_array_mut()).into_iter().flatten() {
+        if let Some(l) = plan.get_mut("learner").and_then(|l| l.as_object_mut()) {
+            for k in ["activation", "delta_min", "patience"] {
+                l.remove(k);
+            }
+        }
+    }
+    v
 }
 
 fn value<T: serde::Serialize>(v: &T) -> serde_json::Value {
@@ -142,12 +179,83 @@ pub fn reference_section(batch: &Path, checks: &[(String, String, String)]) -> S
 /// either cannot be counted.
 fn work_ratio(job: &Path, reference: &Path) -> String {
     match (crate::work::cached(job), crate::work::cached(reference)) {
-        (Ok(j), Ok(r)) if r.reference_hours > 0.0 => format!(
-            "{:.2} / {:.2} h ({:.1} %)",
-            j.reference_hours,
-            r.reference_hours,
-            100.0 * j.reference_hours / r.reference_hours
-        ),
+        (Ok(j), Ok(r)) if r.reference_hours > 0.0 => {
+            format!(
+                "{:.2} / {:.2} h ({})",
+                j.reference_hours,
+                r.reference_hours,
+                percent(j.reference_hours, r.reference_hours)
+            )
+        }
         _ => "—".into(),
     }
+}
+
+/// A job with a `reference`, for [`work_section`].
+#[derive(Debug, Clone)]
+pub struct Referenced {
+    /// The job's name.
+    pub job: String,
+    /// Its directory under the batch.
+    pub dir: String,
+    /// Its reference's directory.
+    pub reference: String,
+    /// Whether the job ran to its end.
+    pub finished: bool,
+}
+
+/// summary.md's section setting each job's work beside its reference's, on the reference
+/// machine, with their totals: the plan's work against the plan its references ran, once every
+/// one of the plan's `jobs` names a reference and has finished.
+pub fn work_section(batch: &Path, refs: &[Referenced], jobs: usize) -> String {
+    let mut md = String::from(
+        "\n## Work against the references\n\nEach job that names a `reference` (a search or a comparison of the same \
+         thing at full size), its work and its reference's, counted from the units each used (`bfqi-ga work`) and \
+         priced in hours on the reference machine.\n\n\
+         | job | reference | work | reference's work | ratio |\n|---|---|---|---|---|\n",
+    );
+    let (mut mine, mut theirs, mut counted) = (0.0, 0.0, 0);
+    for r in refs {
+        let under_way = if r.finished { "" } else { " (not finished)" };
+        match (crate::work::cached(&batch.join(&r.dir)), crate::work::cached(Path::new(&r.reference))) {
+            (Ok(j), Ok(f)) => {
+                md.push_str(&format!(
+                    "| {}{under_way} | `{}` | {:.2} ref. h | {:.2} ref. h | {} |\n",
+                    r.job,
+                    r.reference,
+                    j.reference_hours,
+                    f.reference_hours,
+                    percent(j.reference_hours, f.reference_hours)
+                ));
+                if r.finished {
+                    mine += j.reference_hours;
+                    theirs += f.reference_hours;
+                    counted += 1;
+                }
+            }
+            (j, f) => {
+                let cell = |w: Result<crate::work::Work>| {
+                    w.map_or("—".to_string(), |w| format!("{:.2} ref. h", w.reference_hours))
+                };
+                md.push_str(&format!("| {}{under_way} | `{}` | {} | {} | — |\n", r.job, r.reference, cell(j), cell(f)));
+            }
+        }
+    }
+    md.push_str(&format!(
+        "| **finished jobs** | {counted} of {jobs} | **{mine:.2} ref. h** | **{theirs:.2} ref. h** | **{}** |\n\n",
+        percent(mine, theirs)
+    ));
+    md.push_str(&if counted == jobs {
+        "Every job names a reference and has finished: the total is the plan's work against the plan its references ran.\n"
+            .to_string()
+    } else {
+        format!(
+            "The total counts the {counted} finished job(s) with a reference, of the plan's {jobs}: it is the whole plan's only once every job has a reference and has finished.\n"
+        )
+    });
+    md
+}
+
+fn percent(part: f64, whole: f64) -> String {
+    if whole > 0.0 { format!("{:.1} %", 100.0 * part / whole) } else { "—".into() }
 }
