@@ -524,7 +524,10 @@ fn slow_and_idle_clients_cannot_tie_up_the_server() {
         }
         std::thread::sleep(Duration::from_millis(300));
     }
-    assert!(first.unwrap() < Duration::from_secs(2), "{first:?}");
+    // Not a speed bound (the machines are shared and noisy): a server tied up by the slow clients
+    // could answer only once their head deadline (10 s) freed it, after they stopped sending.
+    let first = first.unwrap();
+    assert!(first < Duration::from_secs(8), "the page waited {first:?}: behind the slow clients' 10 s deadline");
     // Each slow client had 10 s for its whole request head, however steadily it sent: it was
     // answered 408 and closed.
     for s in &mut slow {
