@@ -539,6 +539,8 @@ fn write_summary(dir: &Path, plan: &Plan, states: &[JobState]) -> Result<()> {
             many.join("; ")
         )),
     }
+    let names: Vec<(String, String)> = states.iter().map(|s| (s.name.clone(), s.dir.clone())).collect();
+    md.push_str(&crate::report::batch::taken_units_section(dir, &names));
     let checks: Vec<(String, String, String)> = plan
         .jobs
         .iter()

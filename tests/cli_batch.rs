@@ -1,6 +1,7 @@
 //! `bfqi-ga batch` end to end: failing jobs, budget stop and resume, malformed plans.
 
 mod common;
+use bfqi_ga::progress::human;
 use common::{TempDir, bin, empty_dir, json, read, tiny_with};
 
 use std::path::{Path, PathBuf};
@@ -304,6 +305,19 @@ fn a_search_job_takes_the_units_of_another_run_once_and_a_foreign_spec_is_refuse
         let f = e.unwrap().file_name();
         assert_eq!(read(out.join("s/units").join(&f)), read(three.join("units").join(&f)), "{f:?}");
     }
+    // The summary says where the taken units were computed and that run's wall time: a replay's
+    // seconds are not the search's time.
+    let summary = read(out.join("summary.md"));
+    let st = json(three.join("state.json"));
+    let theirs: f64 = st["generation_seconds"].as_array().unwrap().iter().map(|s| s.as_f64().unwrap()).sum::<f64>()
+        + st["current_seconds"].as_f64().unwrap();
+    let row = format!(
+        "| s | {units} (+{} validation) | `{}` | {} on ",
+        taken[0]["validation"],
+        three.display(),
+        human(theirs)
+    );
+    assert!(summary.contains("## Units computed elsewhere") && summary.contains(&row), "{row}\n{summary}");
 
     // Units of another spec (another seed): the plan is refused before anything runs.
     let foreign = job.replace(r#""seed": 4"#, r#""seed": 5"#);

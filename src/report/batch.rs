@@ -256,6 +256,44 @@ pub fn work_section(batch: &Path, refs: &[Referenced], jobs: usize) -> String {
     md
 }
 
+/// summary.md's section for the `jobs` (name, directory under `batch`) that took units from
+/// other runs (`units_from` in their run.json). Such a job's `time` is its replay's, seconds: this
+/// names the runs that computed the units and the wall time their reports state (their
+/// generations), on their machines; not added to the batch's time, as a source's wall covers all
+/// of its units, of which a job may use few. Empty when no job took any.
+pub fn taken_units_section(batch: &Path, jobs: &[(String, String)]) -> String {
+    let mut rows = String::new();
+    for (job, dir) in jobs {
+        let Ok(info) = crate::store::read_json::<crate::ga::records::RunInfo>(&batch.join(dir).join("run.json")) else {
+            continue;
+        };
+        for u in &info.units_from {
+            let from = Path::new(&u.dir);
+            let wall = match crate::store::read_json::<crate::ga::records::RunState>(&from.join("state.json")) {
+                Ok(s) => format!(
+                    "{}{}",
+                    crate::progress::human(s.elapsed()),
+                    crate::machine::wall_suffix(&crate::machine::of_run(from))
+                ),
+                Err(_) => "— (no readable state.json)".into(),
+            };
+            let validation = if u.validation > 0 { format!(" (+{} validation)", u.validation) } else { String::new() };
+            rows.push_str(&format!("| {job} | {}{validation} | `{}` | {wall} |\n", u.units, u.dir));
+        }
+    }
+    if rows.is_empty() {
+        return rows;
+    }
+    format!(
+        "\n## Units computed elsewhere\n\nA job that took units from another run (`units_from`) did not compute \
+         them: its `time` above is only what it computed and replayed itself. The wall time that computed them is \
+         the source run's, as its report states it: its generations' walls summed over its invocations, on its \
+         machines, for all of its units (the job copies those of its own spec and may use fewer; the source's \
+         validation wall is not recorded).\n\n| job | units copied | from | the source's wall time |\n\
+         |---|---|---|---|\n{rows}"
+    )
+}
+
 fn percent(part: f64, whole: f64) -> String {
     if whole > 0.0 { format!("{:.1} %", 100.0 * part / whole) } else { "—".into() }
 }
