@@ -379,56 +379,9 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
             eprintln!("{} job {} of {n}: {} ({})", store::now_utc().1, i + 1, job.name(), states[i].kind.name());
         }
         let t = Instant::now();
-        let job_dir = dir.join(job.name());
-        let outcome: Result<(Ending, String)> = match job {
-            Job::Search(s) => (|| {
-                if !job_dir.join("spec.json").is_file() {
-                    search::prepare(&s.search, &s.presets, &s.overrides, Some(&job_dir), Path::new("results"))?;
-                }
-                if let Some(from) = &s.units_from {
-                    // Taken once: run.json records the copy when it is done (a copy cut short
-                    // is taken again, skipping the units already there).
-                    let info: crate::ga::records::RunInfo = read_json(&job_dir.join("run.json"))?;
-                    if !info.units_from.iter().any(|u| u.dir == *from) {
-                        let n = search::share_units(&job_dir, Path::new(from))?;
-                        if !quiet {
-                            eprintln!("{n} units taken from {from}");
-                        }
-                    }
-                }
-                let exec = make_exec(&job_dir)?;
-                let ending = search::run(&job_dir, exec.as_ref(), budget, quiet)?;
-                Ok((ending, describe_search(&job_dir)))
-            })(),
-            Job::Compare(cj) => (|| {
-                if !job_dir.join("compare.json").is_file() {
-                    let mut r = cj.request.clone();
-                    if let Some(src) = r.tuned.strip_prefix("from:") {
-                        let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
-                        if states[k].state != JobPhase::Finished {
-                            return Err(Error::File {
-                                path: dir.join(src),
-                                message: format!(
-                                    "search job `{src}` has not finished ({}), so it has no tuned config",
-                                    states[k].state.name()
-                                ),
-                            });
-                        }
-                        r.tuned = dir.join(src).join("best.json").display().to_string();
-                    }
-                    compare::prepare(&cj.compare, &r, Some(&job_dir), Path::new("results"))?;
-                }
-                let exec = make_exec(&job_dir)?;
-                let ending = compare::run(&job_dir, exec.as_ref(), budget, quiet)?;
-                if !matches!(ending, Ending::Finished(_)) {
-                    return Ok((ending, String::new()));
-                }
-                let out = crate::report::comparison::regenerate(&job_dir)?;
-                let supported =
-                    out.claims.iter().filter(|c| c.verdict == crate::report::claims::Verdict::Supported).count();
-                Ok((ending, format!("{supported} of {} thesis claims supported; report.md", out.claims.len())))
-            })(),
-        };
+        let outcome = with_heartbeat(&dir.join("batch.json"), &states, i, t, || {
+            run_job(dir, &plan, &states, i, make_exec, budget, quiet)
+        });
         states[i].seconds += t.elapsed().as_secs_f64();
         match outcome {
             Ok((ending, result)) => {
@@ -461,6 +414,92 @@ pub fn run(dir: &Path, make_exec: &ExecutorFactory<'_>, budget: &Budget<'_>, qui
         None if failed > 0 => Ending::Failed(format!("{failed} job(s) failed (see the summary)")),
         None => Ending::Finished(format!("all {n} jobs")),
     })
+}
+
+/// Runs `work` while a thread rewrites batch.json every 10 s with job `i`'s time so far (its
+/// recorded seconds plus this invocation's since `started`): an invocation killed outright
+/// (SIGKILL, a session's end) loses at most 10 s of its wall time, not all of it.
+fn with_heartbeat<T>(path: &Path, states: &[JobState], i: usize, started: Instant, work: impl FnOnce() -> T) -> T {
+    let (done, wait) = std::sync::mpsc::channel::<()>();
+    let mut beat = states.to_vec();
+    let base = beat[i].seconds;
+    std::thread::scope(|scope| {
+        scope.spawn(move || {
+            while let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
+                wait.recv_timeout(std::time::Duration::from_secs(10))
+            {
+                beat[i].seconds = base + started.elapsed().as_secs_f64();
+                // Best effort: the job's end writes batch.json again, and reports a failure then.
+                write_json(path, &beat).ok();
+            }
+        });
+        let out = work();
+        drop(done);
+        out
+    })
+}
+
+/// Runs (or resumes) job `i` of `plan`: its ending and its one-line result.
+fn run_job(
+    dir: &Path,
+    plan: &Plan,
+    states: &[JobState],
+    i: usize,
+    make_exec: &ExecutorFactory<'_>,
+    budget: &Budget<'_>,
+    quiet: bool,
+) -> Result<(Ending, String)> {
+    let job = &plan.jobs[i];
+    let job_dir = dir.join(job.name());
+    match job {
+        Job::Search(s) => {
+            if !job_dir.join("spec.json").is_file() {
+                search::prepare(&s.search, &s.presets, &s.overrides, Some(&job_dir), Path::new("results"))?;
+            }
+            if let Some(from) = &s.units_from {
+                // Taken once: run.json records the copy when it is done (a copy cut short
+                // is taken again, skipping the units already there).
+                let info: crate::ga::records::RunInfo = read_json(&job_dir.join("run.json"))?;
+                if !info.units_from.iter().any(|u| u.dir == *from) {
+                    let n = search::share_units(&job_dir, Path::new(from))?;
+                    if !quiet {
+                        eprintln!("{n} units taken from {from}");
+                    }
+                }
+            }
+            let exec = make_exec(&job_dir)?;
+            let ending = search::run(&job_dir, exec.as_ref(), budget, quiet)?;
+            Ok((ending, describe_search(&job_dir)))
+        }
+        Job::Compare(cj) => {
+            if !job_dir.join("compare.json").is_file() {
+                let mut r = cj.request.clone();
+                if let Some(src) = r.tuned.strip_prefix("from:") {
+                    let k = plan.jobs.iter().position(|j| j.name() == src).expect("validated");
+                    if states[k].state != JobPhase::Finished {
+                        return Err(Error::File {
+                            path: dir.join(src),
+                            message: format!(
+                                "search job `{src}` has not finished ({}), so it has no tuned config",
+                                states[k].state.name()
+                            ),
+                        });
+                    }
+                    r.tuned = dir.join(src).join("best.json").display().to_string();
+                }
+                compare::prepare(&cj.compare, &r, Some(&job_dir), Path::new("results"))?;
+            }
+            let exec = make_exec(&job_dir)?;
+            let ending = compare::run(&job_dir, exec.as_ref(), budget, quiet)?;
+            if !matches!(ending, Ending::Finished(_)) {
+                return Ok((ending, String::new()));
+            }
+            let out = crate::report::comparison::regenerate(&job_dir)?;
+            let supported =
+                out.claims.iter().filter(|c| c.verdict == crate::report::claims::Verdict::Supported).count();
+            Ok((ending, format!("{supported} of {} thesis claims supported; report.md", out.claims.len())))
+        }
+    }
 }
 
 /// Rebuilds a batch directory's reports from its records: every job's report (a search's

@@ -50,6 +50,38 @@ fn a_failing_job_is_recorded_and_the_others_go_on() {
 }
 
 #[test]
+fn a_batch_killed_outright_keeps_the_running_jobs_time_to_its_last_heartbeat() {
+    let d = tmp("heartbeat");
+    // A search far longer than the 10 s heartbeat on any machine (200 generations of 20).
+    let long = r#"{"name": "long", "search": "cartpole", "presets": ["quick"], "population": 20, "generations": 200, "stall_generations": 200, "datasets": 2, "episodes": 25, "iterations": 2}"#;
+    let p = plan(&d, &[long]);
+    let out = d.join("b");
+    let mut child = common::spawn_quiet(bin().arg("batch").arg(&p).arg("--out").arg(&out));
+    let seconds = |out: &Path| {
+        std::fs::read_to_string(out.join("batch.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+            .map_or(0.0, |v| v[0]["seconds"].as_f64().unwrap_or(0.0))
+    };
+    let t = std::time::Instant::now();
+    while seconds(&out) == 0.0 && t.elapsed().as_secs() < 120 && child.try_wait().unwrap().is_none() {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    assert!(child.try_wait().unwrap().is_none(), "the job ended before its first heartbeat");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let kept = seconds(&out);
+    assert!(kept >= 10.0, "batch.json kept {kept} s of a job killed after its first heartbeat");
+    // A resume stopped before the job goes on keeps that time, and the summary shows it.
+    let o = batch(&["--resume", out.to_str().unwrap(), "--max-hours", "1e-300"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(seconds(&out), kept);
+    let summary = read(out.join("summary.md"));
+    let row = summary.lines().find(|l| l.starts_with("| long ")).unwrap();
+    assert!(row.contains(&format!("| {} |", human(kept))), "{row}");
+}
+
+#[test]
 fn budget_stop_then_resume_equals_an_uninterrupted_batch() {
     let d = tmp("budget");
     let p = plan(&d, &[SEARCH, COMPARE]);
