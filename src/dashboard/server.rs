@@ -144,11 +144,22 @@ impl Server {
 }
 
 /// 503 without waiting on the client: one non-blocking write, then the connection is dropped.
+/// What of the request has already arrived is read first (without waiting, at most
+/// [`MAX_HEAD`] bytes): closing with it unread would reset the connection, and a client could
+/// see the reset instead of the 503.
 fn refuse_busy(mut s: TcpStream) {
     let _ = s.set_nonblocking(true);
     let mut out = head(503, "text/plain; charset=utf-8", 9, &[]);
     out.extend_from_slice(b"503 busy\n");
     let _ = s.write_all(&out);
+    let _ = s.shutdown(Shutdown::Write);
+    let (mut buf, mut drained) = ([0u8; 4096], 0);
+    while drained < MAX_HEAD {
+        match s.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(k) => drained += k,
+        }
+    }
 }
 
 /// Why no request could be taken from a connection.
