@@ -153,9 +153,22 @@ fn refuse_busy(mut s: TcpStream) {
     out.extend_from_slice(b"503 busy\n");
     let _ = s.write_all(&out);
     let _ = s.shutdown(Shutdown::Write);
-    let (mut buf, mut drained) = ([0u8; 4096], 0);
-    while drained < MAX_HEAD {
-        match s.read(&mut buf) {
+    drain(&mut s, &mut [0u8; 4096], MAX_HEAD, None);
+}
+
+/// Reads and drops what the client still sends, at most `max` bytes, until `until` (with none,
+/// on a non-blocking stream: what has arrived): closing with unread data would reset the
+/// connection, and the client could lose the answer.
+fn drain(s: &mut TcpStream, buf: &mut [u8], max: usize, until: Option<Instant>) {
+    let mut drained = 0;
+    while drained < max {
+        if let Some(until) = until {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() || s.set_read_timeout(Some(left)).is_err() {
+                break;
+            }
+        }
+        match s.read(buf) {
             Ok(0) | Err(_) => break,
             Ok(k) => drained += k,
         }
@@ -328,21 +341,9 @@ fn serve(mut s: TcpStream, shared: &Shared) {
     };
     let _ = s.write_all(&bytes);
     let _ = s.shutdown(Shutdown::Write);
-    // What the client still sends (its request's rest, after an error) is read and dropped for a
-    // moment, into the same buffer: closing with unread data would reset the connection and
-    // lose the answer.
+    // The request's rest (after an error) is drained for a moment, into the same buffer.
     let until = Instant::now() + if clean { Duration::from_millis(200) } else { LINGER };
-    let mut drained = 0;
-    while drained < DRAIN {
-        let left = until.saturating_duration_since(Instant::now());
-        if left.is_zero() || s.set_read_timeout(Some(left)).is_err() {
-            break;
-        }
-        match s.read(&mut buf) {
-            Ok(0) | Err(_) => break,
-            Ok(k) => drained += k,
-        }
-    }
+    drain(&mut s, &mut buf, DRAIN, Some(until));
 }
 
 /// A response's status line and headers (every response closes its connection).

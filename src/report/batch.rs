@@ -269,13 +269,12 @@ pub fn taken_units_section(batch: &Path, jobs: &[(String, String)]) -> String {
         };
         for u in &info.units_from {
             let from = Path::new(&u.dir);
-            let wall = match crate::store::read_json::<crate::ga::records::RunState>(&from.join("state.json")) {
-                Ok(s) => format!(
-                    "{}{}",
-                    crate::progress::human(s.elapsed()),
-                    crate::machine::wall_suffix(&crate::machine::of_run(from))
-                ),
-                Err(_) => "— (no readable state.json)".into(),
+            // The source's work record holds its wall time (its state's) and its machines.
+            let wall = match crate::work::cached(from) {
+                Ok(crate::work::Work { wall_seconds: Some(w), machines, .. }) => {
+                    format!("{}{}", crate::progress::human(w), crate::machine::wall_suffix(&machines))
+                }
+                _ => "— (not recorded)".into(),
             };
             let validation = if u.validation > 0 { format!(" (+{} validation)", u.validation) } else { String::new() };
             rows.push_str(&format!("| {job} | {}{validation} | `{}` | {wall} |\n", u.units, u.dir));
