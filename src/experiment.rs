@@ -288,14 +288,19 @@ pub fn encoded_dataset(cfg: &RunConfig, index: usize) -> Result<(Dataset, Encode
     let env = cfg.env.env();
     let data = dataset::make(env, cfg.data.as_ref(), cfg.episodes, cfg.seed, dataset::Role::Compare, index)?;
     let enc = Encoded::new(&data, env.actions(), cfg.actions).map_err(|e| match e {
-        crate::error::Error::Data(m) => {
-            crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}"))
-        }
+        crate::error::Error::Data(m) => match &cfg.data {
+            Some(logged) => logged.too_few(dataset::Role::Compare, index, cfg.episodes, &m),
+            None => crate::error::Error::invalid("episodes", cfg.episodes, format!("too few for dataset {index}: {m}")),
+        },
         other => other,
     })?;
     if matches!(cfg.learner, LearnerConfig::Mlp(_)) {
         // Each network holds out a validation tail: it needs two rows (validation_fraction ≤ 0.5).
         if let Some(rows) = (0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).find(|&r| r < 2) {
+            if let Some(logged) = &cfg.data {
+                let why = format!("a network gets only {rows} transition(s)");
+                return Err(logged.too_few(dataset::Role::Compare, index, cfg.episodes, &why));
+            }
             return Err(crate::error::Error::invalid(
                 "episodes",
                 cfg.episodes,

@@ -391,6 +391,24 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
     h
 }
 
+/// [`fnv1a`] of a file's bytes, read in chunks: memory stays small however large the file.
+pub fn fnv1a_file(path: &Path) -> Result<u64> {
+    use std::io::Read;
+    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let (mut h, mut buf) = (0xcbf2_9ce4_8422_2325u64, vec![0u8; 1 << 20]);
+    loop {
+        let n = match f.read(&mut buf) {
+            Ok(0) => return Ok(h),
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(Error::io(path, e)),
+        };
+        for &b in &buf[..n] {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+}
+
 /// [`fnv1a`] of a value's compact JSON, as 16 hex digits: spec hashes and unit checksums.
 pub fn json_hash<T: serde::Serialize>(value: &T) -> String {
     let text = serde_json::to_string(value).expect("a stored value serialises");

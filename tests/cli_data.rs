@@ -169,3 +169,26 @@ fn a_search_on_a_logged_file_is_the_same_on_1_and_2_threads_after_a_kill_and_whe
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("data.hash") && err.contains("not the data"), "{err}");
 }
+
+#[test]
+fn a_one_row_log_is_refused_naming_the_file_and_an_unflagged_end_is_warned_of() {
+    let dir = tmp("one-row");
+    let log = dir.join("one.csv");
+    // One transition whose episode ends with neither flag: the log stopped.
+    std::fs::write(
+        &log,
+        "episode,step,state_0,state_1,state_2,state_3,action,reward,next_state_0,next_state_1,next_state_2,next_state_3,terminated,truncated\n\
+         0,0,0.1,0,0,0,1,1,0.1,0.1,0,0,False,False\n",
+    )
+    .unwrap();
+    let mut v: serde_json::Value = json("searches/cartpole.json");
+    v["data"] = serde_json::json!({"file": log, "split": "bootstrap"});
+    let spec = dir.join("spec.json");
+    std::fs::write(&spec, v.to_string()).unwrap();
+    let o = bin().args(["search", spec.to_str().unwrap(), "--quick", "--out"]).arg(dir.join("run")).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("one.csv") && err.contains("holds 1 episode(s)"), "names the file and what it holds: {err}");
+    assert!(err.contains("end with neither terminated nor truncated: read as truncated"), "warned: {err}");
+    assert!(!err.contains("invalid episodes"), "{err}");
+}

@@ -161,18 +161,19 @@ fn load(source: &DataSource, python: &str) -> Result<Arc<Logged>> {
     if let Some(l) = cache.lock().expect("data cache").get(&key) {
         return Ok(l.clone());
     }
-    let (bytes, data, minari) = match (&source.file, &source.minari) {
+    let (hash, data, minari) = match (&source.file, &source.minari) {
         (Some(path), _) => {
-            let bytes = std::fs::read(path).map_err(|err| Error::Io { path: path.to_path_buf(), err })?;
-            (bytes, super::table::read(path)?, None)
+            // Read first, so a file the caps refuse is refused before it is hashed.
+            let data = super::table::read(path)?;
+            (crate::store::fnv1a_file(path)?, data, None)
         }
         (_, Some(id)) => {
             let (bytes, data, info) = super::minari::read(id, python)?;
-            (bytes, data, Some(info))
+            (crate::store::fnv1a(&bytes), data, Some(info))
         }
         _ => unreachable!("checked above"),
     };
-    let hash = format!("{:016x}", crate::store::fnv1a(&bytes));
+    let hash = format!("{hash:016x}");
     if data.is_empty() {
         return Err(Error::invalid(source.field(), source.origin(), "holds no transitions"));
     }
@@ -349,6 +350,22 @@ impl DataSource {
             (Split::Disjoint, None) => Err(Error::invalid("data.slots", "absent", "the spec was not resolved")),
             (Split::Bootstrap, _) => Ok(()),
         }
+    }
+
+    /// The refusal of a logged dataset too small to learn from (`why`: an action it lacks, a network
+    /// without two rows), naming the data and how many episodes it holds against those asked:
+    /// with logged data, more episodes per dataset cannot help beyond what the data holds.
+    pub fn too_few(&self, role: Role, index: usize, episodes: usize, why: &str) -> Error {
+        let logged = self.episodes.unwrap_or(0);
+        Error::invalid(
+            self.field(),
+            self.origin(),
+            format!(
+                "holds {logged} episode(s): {} dataset {index} of {episodes} episode(s) taken from them is too small ({why}); \
+                 log more episodes (every action's transitions, at least 2 for each network)",
+                Slots::noun(role)
+            ),
+        )
     }
 
     /// Dataset `index` of a role, of `episodes` episodes, under master seed `master` (see the module

@@ -66,16 +66,25 @@ pub fn read(path: &Path) -> Result<Dataset> {
 /// terminated or was truncated. Episodes are numbered 0, 1, … in the order they first appear.
 pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
     let refuse = |message: String| Error::File { path: path.to_path_buf(), message };
-    let od = (0..).take_while(|i| t.column(&format!("state_{i}")).is_some()).count();
+    // Looked up by name in a map: `Table::column` per state column is quadratic in the width.
+    let index: std::collections::HashMap<&str, &Column> = t.columns().collect();
+    let column = |name: &str| index.get(name).copied();
+    let od = (0..).take_while(|i| column(&format!("state_{i}")).is_some()).count();
     if od == 0 {
+        // One line, however wide the table: its first names and the count.
+        const SHOWN: usize = 20;
+        let names = t.names();
+        let mut has = names[..names.len().min(SHOWN)].join(", ");
+        if names.len() > SHOWN {
+            has.push_str(&format!(", … ({} columns)", names.len()));
+        }
         return Err(refuse(format!(
             "no column state_0: a dataset has the columns episode, step, state_0…, action, reward, next_state_0…, \
-             terminated, truncated (it has {})",
-            t.names().join(", ")
+             terminated, truncated (it has {has})"
         )));
     }
     let numbers = |name: &str| -> Result<Vec<f64>> {
-        let c = t.column(name).ok_or_else(|| refuse(format!("no column {name} (it has {} state columns)", od)))?;
+        let c = column(name).ok_or_else(|| refuse(format!("no column {name} (it has {} state columns)", od)))?;
         let v: Vec<f64> = match c {
             Column::Float(v) => v.clone(),
             Column::Int(v) => v.iter().map(|x| x.map_or(f64::NAN, |x| x as f64)).collect(),
@@ -87,7 +96,17 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
                 r + 1,
                 if v[r].is_nan() { "missing or NaN".to_string() } else { v[r].to_string() }
             ))),
-            None => Ok(v),
+            // The learners work in f32: a larger value would become infinite in them, and fail
+            // (or mislead) far from this file.
+            None => match v.iter().position(|x| x.abs() > f64::from(f32::MAX)) {
+                Some(r) => Err(refuse(format!(
+                    "column {name}, row {}: {:e} is beyond ±{:e}, the largest value the learners (in f32) hold",
+                    r + 1,
+                    v[r],
+                    f32::MAX
+                ))),
+                None => Ok(v),
+            },
         }
     };
     let counter = |name: &str| -> Result<Vec<u32>> {
@@ -104,6 +123,23 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
             .collect()
     };
     let flag = |name: &str| -> Result<Vec<bool>> {
+        // Booleans as pandas (True / False), polars (true / false) and Python's csv module write
+        // them: a CSV reads them as a string column.
+        if let Some(Column::Str(v)) = column(name) {
+            return v
+                .iter()
+                .enumerate()
+                .map(|(r, x)| match x.as_deref().map(str::trim) {
+                    Some("1" | "True" | "true" | "TRUE") => Ok(true),
+                    Some("0" | "False" | "false" | "FALSE") => Ok(false),
+                    other => Err(refuse(format!(
+                        "column {name}, row {}: {} is not 0 or 1 (nor True or False)",
+                        r + 1,
+                        other.map_or("a missing value".to_string(), |s| format!("'{s}'"))
+                    ))),
+                })
+                .collect();
+        }
         numbers(name)?
             .into_iter()
             .enumerate()
@@ -114,7 +150,7 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
             })
             .collect()
     };
-    if t.column(&format!("next_state_{od}")).is_some() {
+    if column(&format!("next_state_{od}")).is_some() {
         return Err(refuse(format!("column next_state_{od} has no state_{od}: states and next states differ in size")));
     }
     let (ids, steps) = (counter("episode")?, counter("step")?);
@@ -131,8 +167,13 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
     let (action, reward) = (numbers("action")?, numbers("reward")?);
     let mut seen = std::collections::HashSet::new();
     let mut episode = 0u32;
+    // Episodes whose last transition is neither terminated nor truncated (the log stopped).
+    let mut unflagged = 0usize;
     for r in 0..n {
         let first = r == 0 || ids[r] != ids[r - 1];
+        if r + 1 == n || ids[r + 1] != ids[r] {
+            unflagged += usize::from(!terminated[r] && !truncated[r]);
+        }
         if first {
             if !seen.insert(ids[r]) {
                 return Err(refuse(format!(
@@ -169,6 +210,14 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
         d.reward.push(reward[r]);
         d.next_state.extend(nexts.iter().map(|c| c[r]));
         d.absorbing.push(terminated[r]);
+    }
+    if unflagged > 0 {
+        eprintln!(
+            "warning: {}: {unflagged} of {} episodes end with neither terminated nor truncated: read as truncated \
+             (the log stopped; FQI bootstraps from their last next state)",
+            path.display(),
+            episode + 1
+        );
     }
     Ok(d)
 }
@@ -264,5 +313,28 @@ mod tests {
         let mut only = Table::new();
         only.push("episode", Column::Int(vec![Some(0)])).unwrap();
         refused(&only, "no column state_0");
+        // Finite in f64 but infinite in the learners' f32.
+        let mut big = s.clone();
+        big[2] = 1e39;
+        refused(&with(&t, "state_1", Column::Float(big)), "column state_1, row 3: 1e39 is beyond");
+        let mut word = vec![Some("False".to_string()); n];
+        word[1] = Some("yes".into());
+        refused(&with(&t, "truncated", Column::Str(word)), "column truncated, row 2: 'yes' is not 0 or 1");
+    }
+
+    #[test]
+    fn booleans_as_pandas_polars_and_python_write_them_are_flags() {
+        let c = EnvConfig::by_name("cartpole").unwrap();
+        let d = super::super::collect(c.env(), 3, 2).unwrap();
+        let t = to_table(&d);
+        let words = |name: &str, yes: &str, no: &str| {
+            let Some(Column::Int(v)) = t.column(name) else { panic!() };
+            Column::Str(v.iter().map(|x| Some(if *x == Some(1) { yes } else { no }.to_string())).collect())
+        };
+        for (yes, no) in [("True", "False"), ("true", "false"), ("1", "0")] {
+            let w =
+                with(&with(&t, "terminated", words("terminated", yes, no)), "truncated", words("truncated", yes, no));
+            assert_eq!(from_table(&w, Path::new("logged.csv")).unwrap(), d, "{yes}/{no}");
+        }
     }
 }

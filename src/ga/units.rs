@@ -261,17 +261,24 @@ impl Evaluator {
         let data = dataset::make(env, self.spec.data.as_ref(), s.episodes, self.spec.seed, self.role.datasets(), d)?;
         let enc = Encoded::new(&data, env.actions(), s.actions).map_err(|e| match e {
             // An action missing from a tiny dataset is the episode count's doing.
-            Error::Data(m) => Error::invalid(
-                "search.episodes",
-                s.episodes,
-                format!("too few for {} dataset {d}: {m}", self.role.name()),
-            ),
+            Error::Data(m) => match &self.spec.data {
+                Some(logged) => logged.too_few(self.role.datasets(), d, s.episodes, &m),
+                None => Error::invalid(
+                    "search.episodes",
+                    s.episodes,
+                    format!("too few for {} dataset {d}: {m}", self.role.name()),
+                ),
+            },
             other => other,
         })?;
         // Each network holds out a validation tail: it needs two rows (validation_fraction ≤ 0.5).
         for j in 0..enc.n_models() {
             let rows = enc.model_rows(j).1.len();
             if rows < 2 {
+                if let Some(logged) = &self.spec.data {
+                    let why = format!("a network gets only {rows} transition(s)");
+                    return Err(logged.too_few(self.role.datasets(), d, s.episodes, &why));
+                }
                 return Err(Error::invalid(
                     "search.episodes",
                     s.episodes,

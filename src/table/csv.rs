@@ -59,24 +59,28 @@ fn quoted(s: &str) -> String {
 pub fn read(path: &Path) -> Result<Table> {
     let refuse = |message: String| Error::File { path: path.to_path_buf(), message };
     let mut records = Records::open(path)?;
-    let Some((_, header)) = records.next_record()? else {
+    // Fields past a record's allowed count are counted, not kept: memory stays within the caps
+    // however long a line is.
+    let most = crate::limits::TABLE_COLUMNS;
+    let Some((_, header, width)) = records.next_record(most, true)? else {
         return Err(refuse("empty: a CSV table starts with a header line of column names".into()));
     };
-    let names: Vec<String> = header.into_iter().map(|f| f.text).collect();
-    for (i, n) in names.iter().enumerate() {
-        if names[..i].contains(n) {
-            return Err(refuse(format!("column '{n}' named twice in the header")));
-        }
+    if width > most {
+        // Refused as soon as seen: the rest of such a header is not read.
+        return Err(refuse(format!("more than {most} columns: a table may have at most {most}")));
     }
-    super::check_size(path, 0, names.len() as u64)?;
+    let names: Vec<String> = header.into_iter().map(|f| f.text).collect();
+    if let Some(n) = super::first_repeated(&names) {
+        return Err(refuse(format!("column '{n}' named twice in the header")));
+    }
     let mut kinds = vec![Kind::Missing; names.len()];
     let mut rows = 0u64;
-    while let Some((line, fields)) = records.next_record()? {
+    while let Some((line, fields, count)) = records.next_record(names.len(), false)? {
         if blank(&fields, names.len()) {
             continue;
         }
-        if fields.len() != names.len() {
-            return Err(refuse(format!("line {line}: {} fields, the header names {}", fields.len(), names.len())));
+        if count != names.len() {
+            return Err(refuse(format!("line {line}: {count} fields, the header names {}", names.len())));
         }
         rows += 1;
         super::check_size(path, rows, names.len() as u64)?;
@@ -94,8 +98,8 @@ pub fn read(path: &Path) -> Result<Table> {
         })
         .collect();
     let mut records = Records::open(path)?;
-    records.next_record()?;
-    while let Some((line, fields)) = records.next_record()? {
+    records.next_record(names.len(), false)?;
+    while let Some((line, fields, _)) = records.next_record(names.len(), false)? {
         if blank(&fields, names.len()) {
             continue;
         }
@@ -112,12 +116,8 @@ pub fn read(path: &Path) -> Result<Table> {
             }
         }
     }
-    let mut table = Table::new();
-    for (name, c) in names.iter().zip(columns) {
-        // Only a file changed between the two passes can give columns of other lengths.
-        table.push(name, c).map_err(|e| refuse(format!("changed while read ({e})")))?;
-    }
-    Ok(table)
+    // Only a file changed between the two passes can give columns of other lengths.
+    Table::from_parts(names, columns).map_err(|e| refuse(format!("changed while read ({e})")))
 }
 
 /// A blank line, skipped as pandas skips it (in a table of one column it is a missing value).
@@ -203,10 +203,13 @@ impl<'a> Records<'a> {
         Error::File { path: self.path.to_path_buf(), message: format!("line {line}: {what}") }
     }
 
-    /// The next record with the line it starts on, or `None` at the end of the file.
-    fn next_record(&mut self) -> Result<Option<(usize, Vec<Field>)>> {
+    /// The next record with the line it starts on and its count of fields, of which the first
+    /// `most` are kept; `None` at the end of the file. With `stop`, a record of more fields ends
+    /// there, mid-line, with `most + 1` as its count (a header refused for its width).
+    fn next_record(&mut self, most: usize, stop: bool) -> Result<Option<(usize, Vec<Field>, usize)>> {
         let start = self.line;
         let mut fields = Vec::new();
+        let mut count = 0;
         let mut bytes = Vec::new();
         let mut quoted = false;
         let mut at_start = true;
@@ -229,7 +232,13 @@ impl<'a> Records<'a> {
                 }
                 Some(b'"') if !quoted => return Err(self.refuse(self.line, "a quote inside an unquoted field")),
                 Some(b',') => {
-                    fields.push(self.field(std::mem::take(&mut bytes), quoted, start)?);
+                    count += 1;
+                    if count <= most {
+                        fields.push(self.field(std::mem::take(&mut bytes), quoted, start)?);
+                    } else if stop {
+                        return Ok(Some((start, fields, count)));
+                    }
+                    bytes.clear();
                     (quoted, at_start) = (false, true);
                 }
                 Some(b'\n') => {
@@ -250,8 +259,11 @@ impl<'a> Records<'a> {
                 }
             }
         }
-        fields.push(self.field(bytes, quoted, start)?);
-        Ok(Some((start, fields)))
+        count += 1;
+        if count <= most {
+            fields.push(self.field(bytes, quoted, start)?);
+        }
+        Ok(Some((start, fields, count)))
     }
 
     fn read_quoted(&mut self, bytes: &mut Vec<u8>) -> Result<()> {
@@ -375,9 +387,33 @@ mod tests {
         assert!(refused(b"a,b\n1,2\"\n").contains("line 2: a quote inside an unquoted field"));
         assert!(refused(b"a,a\n1,2\n").contains("column 'a' named twice"));
         assert!(refused(b"a\n\xff\n").contains("line 2: not UTF-8 text"));
+        // Too many fields on a line: counted exactly, though only the header's are kept.
+        assert!(refused(b"a,b\n1,2,3,4,5\n").contains("line 2: 5 fields, the header names 2"));
         let d = dir("dir");
         let e = read(&d).unwrap_err().to_string();
         assert!(e.contains("is a directory"), "{e}");
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn the_widest_header_reads_and_a_wider_one_is_refused_early() {
+        let most = crate::limits::TABLE_COLUMNS;
+        let d = dir("wide");
+        let p = d.join("t.csv");
+        let line = |n: usize, f: &dyn Fn(usize) -> String| (0..n).map(f).collect::<Vec<_>>().join(",");
+        // The widest table allowed: its name check and table were quadratic (40,000 columns took 34 s).
+        std::fs::write(&p, format!("{}\n{}\n", line(most, &|i| format!("c{i}")), line(most, &|i| i.to_string())))
+            .unwrap();
+        let t = read(&p).unwrap();
+        assert_eq!((t.width(), t.rows()), (most, 1));
+        assert_eq!(t.column("c99999"), Some(&Column::Int(vec![Some(99_999)])));
+        // One column more is refused, without reading the rest of the line into fields.
+        std::fs::write(&p, format!("{}\n", line(most + 1, &|i| format!("c{i}")))).unwrap();
+        let e = read(&p).unwrap_err().to_string();
+        assert!(e.contains(&format!("more than {most} columns")), "{e}");
+        // A name repeated far apart is still found.
+        std::fs::write(&p, format!("{},c0\n", line(1000, &|i| format!("c{i}")))).unwrap();
+        assert!(read(&p).unwrap_err().to_string().contains("column 'c0' named twice"));
         std::fs::remove_dir_all(d).unwrap();
     }
 }

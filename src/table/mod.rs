@@ -109,6 +109,21 @@ impl Table {
         Ok(())
     }
 
+    /// The table of `names` and `columns` (as many), in linear time where [`Self::push`] per
+    /// column is quadratic in the width (a file of 100,000 columns); refused, naming the column,
+    /// when a name is taken twice or the lengths differ.
+    fn from_parts(names: Vec<String>, columns: Vec<Column>) -> Result<Self> {
+        if let Some(name) = first_repeated(&names) {
+            return Err(Error::Data(format!("table column '{name}' given twice")));
+        }
+        if let Some(first) = columns.first()
+            && let Some((name, c)) = names.iter().zip(&columns).find(|(_, c)| c.len() != first.len())
+        {
+            return Err(Error::Data(format!("table column '{name}' has {} rows, the table {}", c.len(), first.len())));
+        }
+        Ok(Table { names, columns })
+    }
+
     /// Rows (0 for a table without columns).
     pub fn rows(&self) -> usize {
         self.columns.first().map_or(0, Column::len)
@@ -211,6 +226,12 @@ pub fn read(path: &Path) -> Result<Table> {
             message: "unknown table format: the name must end in .parquet, .pq or .csv".into(),
         }),
     }
+}
+
+/// The first name in `names` that an earlier one repeats, found in linear time.
+fn first_repeated(names: &[String]) -> Option<&str> {
+    let mut seen = std::collections::HashSet::with_capacity(names.len());
+    names.iter().find(|n| !seen.insert(n.as_str())).map(String::as_str)
 }
 
 /// Opens an input table file after checking it is a regular file within

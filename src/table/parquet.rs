@@ -173,9 +173,6 @@ pub fn read(path: &Path) -> Result<Table> {
         let c = schema.column(j);
         let name = c.name().to_string();
         let read = plan(&c).map_err(|why| refuse(format!("column '{name}' {why}")))?;
-        if names.contains(&name) {
-            return Err(refuse(format!("column '{name}' named twice")));
-        }
         columns.push(match read {
             Read::Double | Read::Float32 => Column::Float(Vec::with_capacity(rows)),
             Read::Int64 | Read::Int32 { .. } | Read::Bool => Column::Int(Vec::with_capacity(rows)),
@@ -183,6 +180,9 @@ pub fn read(path: &Path) -> Result<Table> {
         });
         names.push(name);
         plans.push(read);
+    }
+    if let Some(name) = super::first_repeated(&names) {
+        return Err(refuse(format!("column '{name}' named twice")));
     }
     for (g, group_meta) in meta.row_groups().iter().enumerate() {
         let group = reader.get_row_group(g).map_err(|e| refuse(format!("row group {g}: {e}")))?;
@@ -214,11 +214,7 @@ pub fn read(path: &Path) -> Result<Table> {
             got.map_err(bad)?;
         }
     }
-    let mut table = Table::new();
-    for (name, c) in names.iter().zip(columns) {
-        table.push(name, c).map_err(|e| refuse(e.to_string()))?;
-    }
-    Ok(table)
+    Table::from_parts(names, columns).map_err(|e| refuse(e.to_string()))
 }
 
 /// Reads the `rows` values of one column chunk into `out`, each value through `convert`, a null as
