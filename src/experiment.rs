@@ -237,6 +237,11 @@ pub struct DatasetResult {
     /// Per-iteration records.
     #[serde(flatten)]
     pub record: RunRecord,
+    /// The rows each network was fitted on (one per action with `per_action`; none for
+    /// Extra-Trees): what its epochs are counted against ([`crate::work`]). (Absent in units
+    /// written before it was recorded.)
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub network_rows: Option<Vec<usize>>,
     /// [`RunConfig::hash`] of the configuration that computed it, in a comparison's units: a unit
     /// of another configuration is not reused. (Absent in `run` reports and in comparison units
     /// written before it was recorded.)
@@ -351,7 +356,8 @@ pub fn run_dataset_saving(
         };
         model::save(&model_path(dir, index), &Model { info, q })?;
     }
-    Ok(DatasetResult { dataset: index, transitions: data.len(), record, spec_hash: None, checksum: None })
+    let network_rows = matches!(cfg.learner, LearnerConfig::Mlp(_)).then(|| crate::ga::units::network_rows(&enc));
+    Ok(DatasetResult { dataset: index, transitions: data.len(), record, network_rows, spec_hash: None, checksum: None })
 }
 
 /// Where `run --save-model DIR` writes dataset `index`'s Q-function.

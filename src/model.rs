@@ -272,7 +272,7 @@ pub fn load(path: &Path) -> Result<Model> {
             cap >> 30
         )));
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::store::read_checked(path, cap).map_err(|r| r.at(path))?;
     decode(&bytes, path)
 }
 

@@ -34,14 +34,17 @@ pub fn kind(dir: &Path) -> Result<RunKind> {
     }
 }
 
-/// The run directories under `root` (searches with a `spec.json`, started or not, comparisons with
-/// a `compare.json`), sorted; a run's own folders are not searched further, nor hidden ones (a run
+/// The run directories under `root` (searches with a `spec.json` and `run.json`, started or not,
+/// comparisons with a `compare.json`), sorted; a run's own folders are not searched further, nor hidden ones (a run
 /// under construction is `.<name>.tmp<pid>-<host>` until it is whole).
 pub fn find(root: &Path) -> Vec<PathBuf> {
     let mut dirs = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(d) = stack.pop() {
-        if d.join("state.json").is_file() || d.join("spec.json").is_file() || d.join("compare.json").is_file() {
+        // A spec.json alone is an input spec kept beside runs (results/minari/spec.json), not a
+        // search: a search writes its run.json first.
+        let search = d.join("spec.json").is_file() && d.join("run.json").is_file();
+        if d.join("state.json").is_file() || search || d.join("compare.json").is_file() {
             dirs.push(d);
             continue;
         }

@@ -11,8 +11,12 @@
 //! - **reference hours**: those FLOPs at the rates `bench search` measured on a named reference
 //!   machine (`searches/reference-machine.json`, built in), each activation at its own rate.
 //!
-//! Rows per network are not in the unit records; they follow from the spec, since the datasets are
-//! a pure function of it, so they are collected again (one dataset at a time, not kept).
+//! Rows per network are in the unit records (`rows`, `network_rows`). Reading a run counts from its
+//! units and `work.json` alone: it never collects a dataset, so it never starts a gymnasium worker
+//! or Python for Minari and never needs the run's data file. Units written before the rows were
+//! recorded are counted by [`Counting::Collect`] (`bfqi-ga work DIR --write`), which collects their
+//! datasets again (a pure function of the spec) and records the count in `work.json`; reading
+//! trusts that record while its `sources` fingerprint matches the run's files.
 //! Extra-Trees units run no epochs: they are counted apart (`tree_units`), with no FLOPs.
 
 use crate::compare::Comparison;
@@ -21,6 +25,7 @@ use crate::experiment::encoded_dataset;
 use crate::fqi::IterationRecord;
 use crate::ga::units::{Evaluator, Role, activation_name, unit_id};
 use crate::learn::LearnerConfig;
+use crate::learn::actions::ActionEncoding;
 use crate::learn::mlp::{Activation, EpochWork, Shape, split_rows};
 use crate::store::read_json;
 use rayon::prelude::*;
@@ -97,6 +102,20 @@ pub struct Work {
     pub unit_seconds: f64,
     /// The machines its invocations ran on, as run.json records them.
     pub machines: Vec<String>,
+    /// [`fingerprint`] of the files it was counted from: while they are unchanged, `work.json`
+    /// is the run's work. (Absent in records written before it was recorded.)
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sources: Option<String>,
+}
+
+/// How units that do not record the rows their networks were fitted on are counted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Counting {
+    /// Not at all: reading a run never collects a dataset (a gymnasium worker, Python for Minari,
+    /// a data file, or seconds of simulation); such a run's work is "not counted", naming why.
+    Recorded,
+    /// By collecting their datasets again: `bfqi-ga work --write`, and a run's own report.
+    Collect,
 }
 
 impl Work {
@@ -226,54 +245,123 @@ impl Tally {
             wall_seconds,
             unit_seconds: self.unit_seconds,
             machines,
+            sources: None,
         })
     }
 }
 
 /// The work of the run in `dir`: a search (its search and validation units), a comparison (its
-/// units) or a batch (the sum of its jobs that have a run directory).
-pub fn of_run(dir: &Path) -> Result<Work> {
+/// units) or a batch (the sum of its jobs that have a run directory), with the [`fingerprint`] of
+/// what it was counted from.
+pub fn of_run(dir: &Path, counting: Counting) -> Result<Work> {
+    let sources = fingerprint(dir)?;
     // Told apart by their defining files here rather than by `runs`, which shows this in `status`.
-    if dir.join("plan.json").is_file() && dir.join("batch.json").is_file() {
-        of_batch(dir)
+    let w = if dir.join("plan.json").is_file() && dir.join("batch.json").is_file() {
+        of_batch(dir, counting)
     } else if dir.join("compare.json").is_file() {
-        of_comparison(dir)
+        of_comparison(dir, counting)
     } else if dir.join("spec.json").is_file() {
-        of_search(dir)
+        of_search(dir, counting)
     } else {
-        Err(Error::File {
-            path: dir.to_path_buf(),
-            message: "not a comparison, search or batch directory (no compare.json or spec.json, nor plan.json)".into(),
-        })
+        Err(not_a_run(dir))
+    }?;
+    Ok(Work { sources: Some(sources), ..w })
+}
+
+fn not_a_run(dir: &Path) -> Error {
+    Error::File {
+        path: dir.to_path_buf(),
+        message: "not a comparison, search or batch directory (no compare.json or spec.json, nor plan.json)".into(),
     }
 }
 
-/// The work of the run in `dir` as its `work.json` records it when nothing it counts from changed
-/// since it was written (its records, its unit folders: a folder's time changes when a unit is
-/// added or removed), else counted again ([`of_run`]). Counting rebuilds every dataset, seconds
-/// for a committed search, so `status` and a batch's summary read the record where they can.
-pub fn cached(dir: &Path) -> Result<Work> {
-    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
-    let written = modified(&dir.join("work.json"));
-    let sources = ["state.json", "run.json", "validation.json", "compare.json", "batch.json", "units", "validation"];
-    let latest = sources.iter().filter_map(|f| modified(&dir.join(f))).max();
-    match (written, latest) {
-        (Some(w), Some(l)) if w >= l => read_json(&dir.join("work.json")).or_else(|_| of_run(dir)),
-        _ => of_run(dir),
+/// The record files a run's work is counted from, beside its unit folders.
+const RECORDS: [&str; 8] = [
+    "spec.json",
+    "state.json",
+    "run.json",
+    "validation.json",
+    "compare.json",
+    "batch.json",
+    "plan.json",
+    "generations.jsonl",
+];
+
+/// A fingerprint of what the run in `dir`'s work is counted from: its record files' bytes and its
+/// units' names and sizes (a batch: its jobs' fingerprints too). Content, not modification times,
+/// which a clone or a copy does not keep. Reads only small files (each at most
+/// [`crate::store::RECORD_BYTES`]) and lists the unit folders.
+pub fn fingerprint(dir: &Path) -> Result<String> {
+    let mut h = Vec::new();
+    for f in RECORDS {
+        let p = dir.join(f);
+        match crate::store::read_checked(&p, crate::store::RECORD_BYTES) {
+            Ok(bytes) => {
+                h.extend_from_slice(f.as_bytes());
+                h.extend_from_slice(&crate::store::fnv1a(&bytes).to_le_bytes());
+            }
+            Err(crate::store::Refused::Missing) => {}
+            Err(r) => return Err(r.at(&p)),
+        }
     }
+    for folder in ["units", "validation"] {
+        let Ok(entries) = std::fs::read_dir(dir.join(folder)) else { continue };
+        let mut files: Vec<(String, u64)> = entries
+            .filter_map(|e| e.ok())
+            .map(|e| (e.file_name().to_string_lossy().into_owned(), e.metadata().map_or(0, |m| m.len())))
+            .collect();
+        files.sort_unstable();
+        for (name, len) in files {
+            h.extend_from_slice(format!("{folder}/{name}:{len}\n").as_bytes());
+        }
+    }
+    if dir.join("plan.json").is_file() && dir.join("batch.json").is_file() {
+        for job in batch_jobs(dir)? {
+            h.extend_from_slice(fingerprint(&job)?.as_bytes());
+        }
+    }
+    Ok(format!("{:016x}", crate::store::fnv1a(&h)))
+}
+
+/// The work of the run in `dir` as its `work.json` records it while the files it was counted from
+/// are unchanged ([`fingerprint`]), else counted from the units ([`Counting::Recorded`]: no
+/// dataset is collected). What `status`, `work`, the dashboard and a batch's summary read.
+pub fn cached(dir: &Path) -> Result<Work> {
+    match recorded(dir) {
+        Some(w) => Ok(w),
+        None => of_run(dir, Counting::Recorded),
+    }
+}
+
+/// The run's `work.json`, if it was counted from the files the run holds now.
+fn recorded(dir: &Path) -> Option<Work> {
+    let w = read_json::<Work>(&dir.join("work.json")).ok()?;
+    (w.sources.is_some() && w.sources == fingerprint(dir).ok()).then_some(w)
 }
 
 /// Writes the work of the run in `dir` to its `work.json`, beside its report (whose report.md it
-/// leaves as it was: committed reports rebuild byte for byte). A run whose work cannot be counted
-/// is said on stderr and keeps its report: the work is a record about the run, not a result of it.
+/// leaves as it was: committed reports rebuild byte for byte), counted from the units
+/// ([`Counting::Recorded`]). A run whose work cannot be counted is said on stderr and keeps its
+/// report: the work is a record about the run, not a result of it.
 pub fn write(dir: &Path) -> Result<()> {
-    match of_run(dir) {
-        Ok(w) => crate::store::write_json(&dir.join("work.json"), &w),
+    match record(dir, Counting::Recorded) {
+        Ok(_) => Ok(()),
         Err(e) => {
             eprintln!("warning: {}: its work is not counted: {e}", dir.display());
             Ok(())
         }
     }
+}
+
+/// The work of the run in `dir`, recorded in its `work.json`: the record itself while current, else
+/// counted and written (`bfqi-ga work --write` counts with [`Counting::Collect`]).
+pub fn record(dir: &Path, counting: Counting) -> Result<Work> {
+    if let Some(w) = recorded(dir) {
+        return Ok(w);
+    }
+    let w = of_run(dir, counting)?;
+    crate::store::write_json(&dir.join("work.json"), &w)?;
+    Ok(w)
 }
 
 /// The unit ids a search used in one folder, and where the runs it took units from keep theirs.
@@ -307,9 +395,10 @@ fn taken_but_used(dir: &Path) -> Result<Option<[Used; 2]>> {
 
 /// A search's work: every stored unit that verifies, of the search datasets and of validation;
 /// of the units taken from another run (`--units-from`), those the search used.
-pub fn of_search(dir: &Path) -> Result<Work> {
+pub fn of_search(dir: &Path, counting: Counting) -> Result<Work> {
     let spec = crate::ga::setup::load_spec(dir)?;
     let net = &spec.search.network;
+    let n_inputs = spec.env.env().obs_dim() + usize::from(spec.search.actions == ActionEncoding::Input);
     let mut t = Tally::default();
     let taken = taken_but_used(dir)?;
     for (r, role) in [Role::Search, Role::Validation].into_iter().enumerate() {
@@ -323,35 +412,71 @@ pub fn of_search(dir: &Path) -> Result<Work> {
             })
         };
         // A unit that does not verify is computed again on resume: not this run's work yet.
+        let confinement = crate::store::confinement();
         let units: Vec<_> = crate::run_dir::Units::store(&ev)
             .ids()
             .par_iter()
             .filter(|id| counts(id))
-            .filter_map(|id| ev.verified(id).ok().flatten())
+            .filter_map(|id| crate::store::confined(confinement.clone(), || ev.verified(id).ok().flatten()))
             .collect();
-        let mut datasets: Vec<usize> = units.iter().map(|u| u.dataset).collect();
+        let mut datasets: Vec<usize> = units.iter().filter(|u| u.rows.is_none()).map(|u| u.dataset).collect();
         datasets.sort_unstable();
         datasets.dedup();
-        let rows: HashMap<usize, (Vec<usize>, usize)> =
-            datasets.par_iter().map(|&d| Ok((d, ev.network_rows(d)?))).collect::<Result<_>>()?;
+        if counting == Counting::Recorded && !datasets.is_empty() {
+            return Err(uncounted(dir, datasets.len(), role.name()));
+        }
+        let rows: HashMap<usize, Vec<usize>> =
+            datasets.par_iter().map(|&d| Ok((d, ev.network_rows(d)?.0))).collect::<Result<_>>()?;
         for u in &units {
-            let (r, n_inputs) = &rows[&u.dataset];
+            let r = u.rows.as_ref().unwrap_or_else(|| &rows[&u.dataset]);
             t.units += 1;
             t.unit_seconds += u.seconds;
-            t.iterations(&u.iterations, (*n_inputs, &net.hidden, u.setting.activation, net.validation_fraction), r);
+            t.iterations(&u.iterations, (n_inputs, &net.hidden, u.setting.activation, net.validation_fraction), r);
         }
     }
     let wall = read_json::<crate::ga::records::RunState>(&dir.join("state.json")).ok().map(|s| s.elapsed());
     t.finish("search", spec.env.env().name(), wall, crate::machine::of_run(dir))
 }
 
+/// Work that reading a run does not count: units that predate recorded rows.
+fn uncounted(dir: &Path, datasets: usize, what: &str) -> Error {
+    Error::File {
+        path: dir.to_path_buf(),
+        message: format!(
+            "work not counted: units of {datasets} {what} dataset(s) predate recorded rows, and reading a run \
+             never collects its datasets (no simulator, worker or data file is touched); \
+             `bfqi-ga work {} --write` counts them once, collecting those datasets, and records it in work.json",
+            dir.display()
+        ),
+    }
+}
+
 /// A comparison's work: every stored unit that verifies.
-pub fn of_comparison(dir: &Path) -> Result<Work> {
+pub fn of_comparison(dir: &Path, counting: Counting) -> Result<Work> {
     let c = Comparison::open(dir)?;
     let cfg = c.config();
     let mut t = Tally::default();
     let mut rows: HashMap<String, (Vec<usize>, usize)> = HashMap::new();
-    for rec in c.verified_units() {
+    let units = c.verified_units();
+    if counting == Counting::Recorded {
+        // With `input` one network learns every transition; `per_action` splits them by action,
+        // which only the rows the unit records (or its dataset) tell.
+        let unknown = units
+            .iter()
+            .filter(|rec| {
+                let rc = cfg.run_config(&rec.unit);
+                matches!(rc.learner, LearnerConfig::Mlp(_))
+                    && rec.result.network_rows.is_none()
+                    && rc.actions != ActionEncoding::Input
+            })
+            .map(|rec| (rec.unit.episodes, rec.unit.dataset))
+            .collect::<HashSet<_>>();
+        if !unknown.is_empty() {
+            return Err(uncounted(dir, unknown.len(), "comparison"));
+        }
+    }
+    let inputs = cfg.env.env().obs_dim();
+    for rec in units {
         let rc = cfg.run_config(&rec.unit);
         let its = &rec.result.record.iterations;
         t.unit_seconds += its.iter().map(|i| i.fit_seconds + i.predict_seconds + i.eval_seconds).sum::<f64>();
@@ -361,7 +486,11 @@ pub fn of_comparison(dir: &Path) -> Result<Work> {
         };
         // Datasets depend on size, index and encoding only: complexities share them.
         let key = format!("{}.{}.{:?}", rc.episodes, rec.unit.dataset, rc.actions);
-        if !rows.contains_key(&key) {
+        if let Some(r) = &rec.result.network_rows {
+            rows.insert(key.clone(), (r.clone(), inputs + usize::from(rc.actions == ActionEncoding::Input)));
+        } else if rc.actions == ActionEncoding::Input && !rows.contains_key(&key) {
+            rows.insert(key.clone(), (vec![rec.result.transitions], inputs + 1));
+        } else if !rows.contains_key(&key) {
             let (_, enc) = encoded_dataset(&rc, rec.unit.dataset)?;
             let r = (0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).collect();
             rows.insert(key.clone(), (r, enc.n_inputs()));
@@ -375,19 +504,36 @@ pub fn of_comparison(dir: &Path) -> Result<Work> {
 
 /// A batch's work: the sum of its jobs' (those with a run directory), and as wall time the jobs'
 /// seconds batch.json records.
-pub fn of_batch(dir: &Path) -> Result<Work> {
+pub fn of_batch(dir: &Path, counting: Counting) -> Result<Work> {
     // batch.json's jobs, read for their directory and seconds only (the batch module shows this).
     let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
     let mut total = Tally::default().finish("batch", "other", None, Vec::new())?;
-    for j in &jobs {
-        let job = dir.join(j["dir"].as_str().unwrap_or_default());
-        if job != dir && (job.join("compare.json").is_file() || job.join("spec.json").is_file()) {
-            let w = of_run(&job)?;
-            total.add(&Work { wall_seconds: None, ..w });
-        }
+    for job in batch_jobs(dir)? {
+        // A job's own work.json stands for it while current.
+        let w = match (counting, recorded(&job)) {
+            (_, Some(w)) => w,
+            (Counting::Recorded, None) => of_run(&job, counting)?,
+            (Counting::Collect, None) => {
+                let w = of_run(&job, counting)?;
+                // Counted at a cost: recorded beside the job as its report would.
+                crate::store::write_json(&job.join("work.json"), &w)?;
+                w
+            }
+        };
+        total.add(&Work { wall_seconds: None, ..w });
     }
     total.wall_seconds = Some(jobs.iter().filter_map(|j| j["seconds"].as_f64()).sum());
     Ok(total)
+}
+
+/// The run directories of a batch's jobs (those that have one), in batch.json's order.
+fn batch_jobs(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
+    let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
+    Ok(jobs
+        .iter()
+        .map(|j| dir.join(j["dir"].as_str().unwrap_or_default()))
+        .filter(|job| *job != dir && (job.join("compare.json").is_file() || job.join("spec.json").is_file()))
+        .collect())
 }
 
 #[cfg(test)]

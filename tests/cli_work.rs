@@ -90,7 +90,15 @@ fn the_committed_cartpole_search_work_is_its_units_epochs_times_their_rows() {
             }
         }
     }
-    let w = work(&copy);
+    // Its units predate recorded rows: reading the copy does not collect datasets to count them,
+    // and says what does.
+    let o = bin().arg("work").arg(&copy).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("work not counted") && err.contains("--write"), "{err}");
+    let o = bin().args(["work", "--json", "--write"]).arg(&copy).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let w: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(work(&copy), w, "what --write recorded, read back");
     assert_eq!(w["kind"], "search");
     assert_eq!(w["units"].as_u64().unwrap() as usize, units);
     assert_eq!(w["tree_units"], 0);
@@ -114,13 +122,65 @@ fn the_committed_cartpole_search_work_is_its_units_epochs_times_their_rows() {
     let wall: f64 = st["generation_seconds"].as_array().unwrap().iter().map(|s| s.as_f64().unwrap()).sum();
     assert!((w["wall_seconds"].as_f64().unwrap() - wall).abs() < 1e-6);
 
-    // The whole run adds its validation units.
-    let all = work(&dir);
+    // The whole run adds its validation units; counted afresh in a copy without its work.json, it
+    // is the committed work.json, which reading the run (status, work, the dashboard) returns.
+    let whole = fresh("work", "cartpole-whole");
+    copy_dir(&dir, &whole);
+    std::fs::remove_file(whole.join("work.json")).unwrap();
+    let o = bin().args(["work", "--json", "--write"]).arg(&whole).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let all: Value = serde_json::from_slice(&o.stdout).unwrap();
     let validation = std::fs::read_dir(dir.join("validation")).unwrap().count();
     assert_eq!(all["units"].as_u64().unwrap() as usize, units + validation);
     assert!(all["epoch_rows"].as_u64().unwrap() > epoch_rows);
-    // The committed work.json, which `status` reads, is that count.
     assert_eq!(json(dir.join("work.json")), all, "results/searches/cartpole/work.json is stale");
+    assert_eq!(work(&dir), all);
+}
+
+/// A `python3` on the PATH that leaves a mark when anything starts it.
+fn marking_python(dir: &Path) -> (PathBuf, PathBuf) {
+    use std::os::unix::fs::PermissionsExt;
+    let bin_dir = dir.join("bin");
+    std::fs::create_dir_all(&bin_dir).unwrap();
+    let mark = dir.join("python-ran");
+    for name in ["python3", "python"] {
+        let p = bin_dir.join(name);
+        std::fs::write(&p, format!("#!/bin/sh\necho \"$@\" >> '{}'\nexit 1\n", mark.display())).unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+    }
+    (bin_dir, mark)
+}
+
+#[test]
+fn reading_a_minari_run_starts_no_process_and_needs_no_dataset() {
+    // The committed Minari search, copied where its dataset is not, with a `python3` that marks.
+    let d = empty_dir("work", "minari-read");
+    let run = d.join("search");
+    copy_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/minari/search"), &run);
+    let (bin_dir, mark) = marking_python(&d);
+    let path = format!("{}:{}", bin_dir.display(), std::env::var("PATH").unwrap_or_default());
+    let committed = json(run.join("work.json"));
+    let ask = |args: &[&str]| {
+        let o = bin().args(args).env("PATH", &path).env("MINARI_DATASETS_PATH", d.join("nowhere")).output().unwrap();
+        assert!(o.status.success(), "{args:?}: {}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let w: Value = serde_json::from_str(&ask(&["work", "--json", run.to_str().unwrap()])).unwrap();
+    assert_eq!(w, committed, "its work.json, read");
+    let status = ask(&["status", run.to_str().unwrap()]);
+    assert!(status.contains("epoch-rows"), "{status}");
+    ask(&["export", run.to_str().unwrap(), "--out", d.join("export").to_str().unwrap()]);
+    ask(&["report", run.to_str().unwrap()]);
+    // An edited record makes work.json stale: counted again from the units, still without Python.
+    let spec = run.join("spec.json");
+    let mut v = json(&spec);
+    v["env"]["python"] = serde_json::json!(bin_dir.join("python3"));
+    std::fs::write(&spec, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let o = bin().args(["work", run.to_str().unwrap()]).env("PATH", &path).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("work not counted"), "old units without rows are not counted by reading: {err}");
+    ask(&["status", run.to_str().unwrap()]);
+    assert!(!mark.exists(), "a reading command started Python: {}", read(&mark));
 }
 
 #[test]
@@ -174,19 +234,69 @@ fn a_batch_works_the_sum_of_its_jobs_and_its_summary_and_status_say_so() {
     let text = String::from_utf8_lossy(&st.stdout);
     assert_eq!(text.lines().filter(|l| l.contains(" · work ") && l.contains("epoch-rows")).count(), 2, "{text}");
 
-    // `status` reads a run's work.json while nothing it counts from has changed since (counting
-    // again rebuilds every dataset), and counts again once a unit is added or removed.
+    // `status` reads a run's work.json while what it counts from is as it was, and counts again
+    // from the units once one is added or removed.
     let mut stored = json(out.join("s/work.json"));
     stored["epoch_rows"] = serde_json::json!(123_456_789_000u64);
     std::fs::write(out.join("s/work.json"), stored.to_string()).unwrap();
     let st = |dir: &Path| String::from_utf8_lossy(&bin().arg("status").arg(dir).output().unwrap().stdout).into_owned();
     let cached = st(&out.join("s"));
     assert!(cached.contains("123.46 G epoch-rows"), "status reads work.json: {cached}");
+    // Touched records of the same bytes leave it current: a clone or a copy keeps no times.
+    let state = out.join("s/state.json");
+    std::fs::write(&state, std::fs::read(&state).unwrap()).unwrap();
+    assert!(st(&out.join("s")).contains("123.46 G epoch-rows"));
     let unit = std::fs::read_dir(out.join("s/units")).unwrap().next().unwrap().unwrap().path();
-    let bytes = std::fs::read(&unit).unwrap();
     std::fs::remove_file(&unit).unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(20));
-    std::fs::write(&unit, bytes).unwrap();
     let counted = st(&out.join("s"));
-    assert!(!counted.contains("123.46 G epoch-rows"), "a unit folder newer than work.json is counted again: {counted}");
+    assert!(!counted.contains("123.46 G epoch-rows"), "a run whose units changed is counted again: {counted}");
+    assert!(counted.contains("epoch-rows"), "from the rows its new units record: {counted}");
+}
+
+#[test]
+fn status_of_the_committed_minari_folder_lists_its_runs_not_its_input_spec() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/minari");
+    let o = bin().arg("status").arg(&root).env("MINARI_DATASETS_PATH", "/nonexistent").output().unwrap();
+    let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(o.status.success() && !err.contains("warning"), "{err}");
+    for run in ["search", "compare"] {
+        let line = out.lines().find(|l| l.contains(&format!("minari/{run}"))).unwrap_or_else(|| panic!("{out}"));
+        assert!(line.contains("epoch-rows"), "its work, from work.json: {line}");
+    }
+    assert!(!out.contains("minari/spec.json"), "{out}");
+}
+
+/// Runs the binary with `args`, killed if it has not finished within 60 s (a hang fails the test
+/// rather than the suite).
+fn within_a_minute(args: &[&std::ffi::OsStr]) -> std::process::Output {
+    let mut child =
+        bin().args(args).stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let t = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if t.elapsed() > std::time::Duration::from_secs(60) {
+            child.kill().unwrap();
+            panic!("{args:?} hung");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn a_fifo_among_a_runs_records_hangs_neither_status_nor_work() {
+    let d = empty_dir("work", "fifo");
+    let run = d.join("cmp");
+    copy_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("results/searches/bicycle-compare-mlp-iterations"), &run);
+    for f in ["run.json", "lock"] {
+        let p = run.join(f);
+        let _ = std::fs::remove_file(&p);
+        let c = std::ffi::CString::new(p.to_str().unwrap()).unwrap();
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    }
+    let o = within_a_minute(&["status".as_ref(), run.as_os_str()]);
+    let out = format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains("cmp"), "{out}");
+    let o = within_a_minute(&["work".as_ref(), run.as_os_str()]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() || err.contains("not a regular file"), "{err}");
 }

@@ -167,6 +167,11 @@ pub struct WorkArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Count units that predate recorded rows by collecting their datasets again (which may start
+    /// the run's gymnasium worker or Minari's Python, or read its data file), and record the count
+    /// in the run's work.json, which reading the run then uses.
+    #[arg(long)]
+    pub write: bool,
 }
 
 /// `bfqi-ga stamp`.
@@ -372,7 +377,11 @@ pub(super) fn status(a: StatusArgs) -> Result<Outcome> {
 }
 
 pub(super) fn work(a: WorkArgs) -> Result<Outcome> {
-    let w = crate::work::of_run(&a.dir)?;
+    let w = if a.write {
+        crate::work::record(&a.dir, crate::work::Counting::Collect)?
+    } else {
+        crate::work::cached(&a.dir)?
+    };
     if a.json {
         println!("{}", serde_json::to_string_pretty(&w)?);
     } else {

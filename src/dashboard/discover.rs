@@ -5,38 +5,17 @@
 
 use crate::error::{Error, Result};
 use std::cell::RefCell;
-use std::io::Read;
-use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Component, Path, PathBuf};
 
 /// The largest file the dashboard reads (a search's records are kilobytes, a rollout's GIF a
 /// megabyte): what one request can make it hold of a file.
 pub const MAX_FILE: u64 = 32 << 20;
 
-/// Why a file was not read.
-#[derive(Debug, thiserror::Error)]
-pub enum Refused {
-    /// Nothing there.
-    #[error("missing")]
-    Missing,
-    /// A link (or a path) that leads out of the served folders.
-    #[error("links out of the served folders")]
-    Outside,
-    /// A FIFO, device, socket or directory.
-    #[error("not a regular file")]
-    NotRegular,
-    /// Over the cap.
-    #[error("larger than {} MiB", .0 >> 20)]
-    TooLarge(u64),
-    /// Unreadable.
-    #[error("{0}")]
-    Io(#[from] std::io::Error),
-}
+pub use crate::store::Refused;
 
 /// Reads `path`, which must resolve (links followed) inside `base` (a canonical root) and be a
-/// regular file of at most `cap` bytes. It is opened without following a last link and without
-/// blocking (a FIFO would block an open for reading until a writer came), and checked on the open
-/// file, so what is read is what was checked; the read stops at the cap even if the file grows.
+/// regular file of at most `cap` bytes, through the one checked reader ([`crate::store::read_checked`]:
+/// not blocking on a FIFO, checked on the open file, stopped at the cap).
 pub fn read_inside(base: &Path, path: &Path, cap: u64) -> std::result::Result<Vec<u8>, Refused> {
     let real = path.canonicalize().map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => Refused::Missing,
@@ -45,23 +24,7 @@ pub fn read_inside(base: &Path, path: &Path, cap: u64) -> std::result::Result<Ve
     if !real.starts_with(base) {
         return Err(Refused::Outside);
     }
-    let f = std::fs::OpenOptions::new()
-        .read(true)
-        .custom_flags(libc::O_NONBLOCK | libc::O_NOFOLLOW | libc::O_CLOEXEC)
-        .open(&real)?;
-    let meta = f.metadata()?;
-    if !meta.is_file() {
-        return Err(Refused::NotRegular);
-    }
-    if meta.len() > cap {
-        return Err(Refused::TooLarge(cap));
-    }
-    let mut out = Vec::with_capacity(meta.len() as usize);
-    f.take(cap + 1).read_to_end(&mut out)?;
-    if out.len() as u64 > cap {
-        return Err(Refused::TooLarge(cap));
-    }
-    Ok(out)
+    crate::store::read_checked(&real, cap)
 }
 
 /// What a run directory holds, from the file that defines it.
@@ -116,7 +79,7 @@ pub struct Run {
     /// What it is.
     pub kind: Kind,
     /// Its root, canonical: every file it reads must resolve inside.
-    base: PathBuf,
+    pub(crate) base: PathBuf,
     /// What could not be read while building its page (files refused, lines skipped), shown on
     /// the page.
     notes: RefCell<Vec<String>>,

@@ -171,26 +171,44 @@ pub fn comparison(run: &Run) -> (Vec<Table>, Value) {
     (vec![claims, t], json!({ "series": series }))
 }
 
-/// Counted works by run directory, with the modification times they were counted at.
-type WorkCache = std::collections::HashMap<std::path::PathBuf, (Vec<Option<std::time::SystemTime>>, crate::work::Work)>;
-static WORKS: std::sync::Mutex<Option<WorkCache>> = std::sync::Mutex::new(None);
+/// A run directory's work as last read, with the fingerprint it was read at; one lock per run, so
+/// that overlapping requests for a run share one reading rather than each doing it.
+type WorkSlot = std::sync::Arc<std::sync::Mutex<Option<(String, crate::work::Work)>>>;
+static WORKS: std::sync::Mutex<Option<std::collections::HashMap<std::path::PathBuf, WorkSlot>>> =
+    std::sync::Mutex::new(None);
 
-/// A search's, comparison's or batch's work ([`crate::work::of_run`]) as a table; none when it
-/// cannot be counted. Counting reads every unit and the page polls every 2 s, so a run's work is
-/// counted again only when its units, validation, state or jobs changed since.
+/// Forgets every work read so far: `bench dashboard` times first views.
+pub fn forget_works() {
+    if let Ok(mut w) = WORKS.lock() {
+        *w = None;
+    }
+}
+
+/// A search's, comparison's or batch's work as a table: its `work.json` while current, else
+/// counted from its units ([`crate::work::cached`]: no dataset is collected, no process started),
+/// every file read inside the run's root; none when it cannot be counted. The page polls every
+/// 2 s, so a run's work is read again only when its [`crate::work::fingerprint`] changed.
 pub fn work(run: &Run) -> Option<Table> {
-    let stamp: Vec<_> = ["units", "validation", "state.json", "batch.json"]
-        .iter()
-        .map(|f| std::fs::metadata(run.dir.join(f)).and_then(|m| m.modified()).ok())
-        .collect();
-    let cached = WORKS.lock().ok()?.get_or_insert_with(Default::default).get(&run.dir).cloned();
-    let w = match cached {
-        Some((s, w)) if s == stamp => w,
-        _ => {
-            let w = crate::work::of_run(&run.dir).ok()?;
-            WORKS.lock().ok()?.get_or_insert_with(Default::default).insert(run.dir.clone(), (stamp, w.clone()));
-            w
-        }
+    let slot = WORKS.lock().ok()?.get_or_insert_with(Default::default).entry(run.dir.clone()).or_default().clone();
+    let w = {
+        let mut held = slot.lock().ok()?;
+        let roots = Some(std::sync::Arc::new(vec![run.base.clone()]));
+        crate::store::confined(roots, || {
+            let now = crate::work::fingerprint(&run.dir).ok()?;
+            match held.as_ref() {
+                Some((f, w)) if *f == now => Some(w.clone()),
+                _ => match crate::work::cached(&run.dir) {
+                    Ok(w) => {
+                        *held = Some((now, w.clone()));
+                        Some(w)
+                    }
+                    Err(e) => {
+                        run.note(format!("work: {e}"));
+                        None
+                    }
+                },
+            }
+        })?
     };
     let mut t = Table::new(
         "work",

@@ -300,10 +300,13 @@ impl RunState {
     }
 }
 
+/// The largest `generations.jsonl` read: a thesis search's is some 100 kB a generation at most.
+pub const GENERATIONS_BYTES: u64 = 1 << 30;
+
 /// Reads `generations.jsonl`.
 pub fn read_generations(dir: &std::path::Path) -> crate::error::Result<Vec<GenerationRecord>> {
     let path = dir.join("generations.jsonl");
-    let text = std::fs::read_to_string(&path).map_err(|e| crate::error::Error::io(&path, e))?;
+    let text = crate::store::read_text_within(&path, GENERATIONS_BYTES)?;
     text.lines()
         .enumerate()
         .map(|(i, l)| {

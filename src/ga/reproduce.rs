@@ -151,7 +151,7 @@ pub fn reproduce(t: &TunedConfig, path: &Path, validation: bool) -> Result<Repro
 fn stack_differences(spec: &crate::spec::Spec, best: &Path) -> Result<Vec<String>> {
     let Some(g) = spec.env.env().gymnasium() else { return Ok(Vec::new()) };
     let run = best.parent().unwrap_or(Path::new(".")).join("run.json");
-    let recorded = std::fs::read_to_string(&run)
+    let recorded = crate::store::read_text(&run)
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
         .and_then(|v| serde_json::from_value::<crate::env::gymnasium::Versions>(v.get("gymnasium")?.clone()).ok());

@@ -91,7 +91,8 @@ pub fn line(dir: &Path) -> Result<String> {
 /// and the latest one stopped; empty when the search does not race.
 fn racing(dir: &Path) -> String {
     let Some(rule) = load_spec(dir).ok().and_then(|s| s.search.race) else { return String::new() };
-    let text = std::fs::read_to_string(dir.join("generations.jsonl")).unwrap_or_default();
+    let path = dir.join("generations.jsonl");
+    let text = crate::store::read_text_within(&path, super::records::GENERATIONS_BYTES).unwrap_or_default();
     let (mut raced, mut out, mut last) = (0, 0, String::new());
     // A line being appended by a running search is skipped.
     for r in text.lines().filter_map(|l| serde_json::from_str::<super::records::GenerationRecord>(l).ok()) {

@@ -44,6 +44,11 @@ pub struct UnitResult {
     /// cap) and their last losses, the Bellman residual, and its seconds.
     #[serde(default)]
     pub iterations: Vec<IterationRecord>,
+    /// The rows each network of an iteration was fitted on (one per action with `per_action`):
+    /// what its epochs are counted against ([`crate::work`]), so that reading a run never
+    /// collects its datasets again. (Absent in units written before it was recorded.)
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rows: Option<Vec<usize>>,
     /// [`Spec::results_hash`] of the run that computed it: a unit from another spec is not reused.
     /// (Absent in units written before it was recorded.)
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -114,6 +119,11 @@ pub fn parse_setting_id(id: &str) -> Option<Decoded> {
     let delta_min: f64 = parts.next()?.parse().ok()?;
     let patience: usize = parts.next()?.parse().ok()?;
     (parts.next().is_none() && delta_min.is_finite()).then_some(Decoded { activation, delta_min, patience })
+}
+
+/// The rows each network of an encoded dataset is fitted on (training and validation rows).
+pub fn network_rows(enc: &Encoded) -> Vec<usize> {
+    (0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).collect()
 }
 
 /// The unit id (result file stem) of a setting on a dataset, e.g. `sigmoid_5.8e-1_601.d3`.
@@ -247,7 +257,7 @@ impl Evaluator {
     /// the networks' inputs: what a unit's epochs are counted against ([`crate::work`]). Collected
     /// afresh, not kept: a run's work is counted once, and its datasets can be large.
     pub fn network_rows(&self, d: usize) -> Result<(Vec<usize>, usize)> {
-        let rows = |enc: &Encoded| ((0..enc.n_models()).map(|j| enc.model_rows(j).1.len()).collect(), enc.n_inputs());
+        let rows = |enc: &Encoded| (network_rows(enc), enc.n_inputs());
         if let Some(x) = self.data.lock().expect("dataset cache").get(&d) {
             return Ok(rows(&x.1));
         }
@@ -364,6 +374,7 @@ impl Evaluator {
             epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
             seconds: t.elapsed().as_secs_f64(),
             iterations: rec.iterations,
+            rows: Some(network_rows(enc)),
             spec_hash: Some(self.results_hash.clone()),
             checksum: None,
         };
