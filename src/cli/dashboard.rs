@@ -25,10 +25,12 @@ pub(super) fn dashboard(a: DashboardArgs) -> Result<Outcome> {
     for d in &a.dirs {
         anyhow::ensure!(d.is_dir(), "{}: no such directory", d.display());
     }
-    if !is_loopback(&a.host) {
-        eprintln!("warning: serving on {}: anyone who can reach this address can read these runs (read-only)", a.host);
-    }
+    let host = a.host.clone();
     let d = Dashboard::bind(&Options { roots: a.dirs, host: a.host, port: a.port })?;
+    // Said once bound: an address that cannot be served is refused without a word of serving.
+    if !is_loopback(&host) {
+        eprintln!("warning: serving on {host}: anyone who can reach this address can read these runs (read-only)");
+    }
     println!("bfqi-ga dashboard: {}", d.url());
     std::io::stdout().flush()?;
     d.run();

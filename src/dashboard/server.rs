@@ -8,8 +8,10 @@
 //! - the request's head must arrive within [`HEAD_TIMEOUT`] in all (not per read, so a client
 //!   sending a byte at a time cannot hold a thread), and the answer be taken within
 //!   [`WRITE_TIMEOUT`];
-//! - at most [`MAX_CONNECTIONS`] connections are served at once, each on a thread of its own;
-//!   more are answered 503 at once, without blocking the accepting thread;
+//! - at most [`MAX_CONNECTIONS`] connections are served at once, each on a thread of its own; at
+//!   the cap a new connection takes the slot of the oldest one still waiting for its request head
+//!   (closed), so idle clients cannot starve a normal request; when every slot is answering one,
+//!   it is answered 503 at once, without blocking the accepting thread;
 //! - the `Host` header must name this server (a loopback name or address when it serves on
 //!   loopback), so a page on another site that rebinds its DNS name to 127.0.0.1 cannot read
 //!   the runs.
@@ -29,7 +31,7 @@ pub const MAX_HEAD: usize = 16 * 1024;
 pub const MAX_REQUEST_LINE: usize = 8 * 1024;
 /// Header lines per request (431 beyond).
 pub const MAX_HEADERS: usize = 64;
-/// Connections served at once (503 beyond): a few browser tabs and their polls need far fewer.
+/// Connections served at once: a few browser tabs and their polls need far fewer.
 pub const MAX_CONNECTIONS: usize = 32;
 /// Time for a request's whole head to arrive (408 after).
 pub const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
@@ -63,7 +65,44 @@ pub struct Server {
     listener: TcpListener,
     shared: Arc<Shared>,
     stop: Arc<AtomicBool>,
-    live: Arc<AtomicUsize>,
+    slots: Arc<Slots>,
+}
+
+/// The connections being served, oldest first.
+#[derive(Default)]
+struct Slots {
+    held: std::sync::Mutex<Vec<Slot>>,
+    next: AtomicUsize,
+}
+
+/// One connection being served.
+struct Slot {
+    id: usize,
+    /// A handle on its socket, to close it when a newcomer takes its slot.
+    stream: TcpStream,
+    /// Still waiting for its request head: may be closed to free the slot.
+    waiting: Arc<AtomicBool>,
+}
+
+impl Slots {
+    /// A slot for a new connection: a free one, else the oldest waiting one's (that connection
+    /// closed), else none.
+    fn take(&self, stream: &TcpStream) -> Option<(usize, Arc<AtomicBool>)> {
+        let mut held = self.held.lock().unwrap_or_else(|p| p.into_inner());
+        if held.len() >= MAX_CONNECTIONS {
+            let oldest = held.iter().position(|s| s.waiting.load(Ordering::SeqCst))?;
+            let _ = held.remove(oldest).stream.shutdown(Shutdown::Both);
+        }
+        let handle = stream.try_clone().ok()?;
+        let id = self.next.fetch_add(1, Ordering::SeqCst);
+        let waiting = Arc::new(AtomicBool::new(true));
+        held.push(Slot { id, stream: handle, waiting: Arc::clone(&waiting) });
+        Some((id, waiting))
+    }
+
+    fn free(&self, id: usize) {
+        self.held.lock().unwrap_or_else(|p| p.into_inner()).retain(|s| s.id != id);
+    }
 }
 
 struct Shared {
@@ -88,7 +127,7 @@ impl Server {
             listener,
             shared: Arc::new(shared),
             stop: Arc::new(AtomicBool::new(false)),
-            live: Arc::new(AtomicUsize::new(0)),
+            slots: Arc::new(Slots::default()),
         })
     }
 
@@ -112,19 +151,18 @@ impl Server {
                     continue;
                 }
             };
-            if self.live.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
-                self.live.fetch_sub(1, Ordering::SeqCst);
+            let Some((id, waiting)) = self.slots.take(&stream) else {
                 refuse_busy(stream);
                 continue;
-            }
+            };
             let shared = Arc::clone(&self.shared);
-            let live = Arc::clone(&self.live);
+            let slots = Arc::clone(&self.slots);
             let spawned = std::thread::Builder::new().name("dashboard-conn".into()).spawn(move || {
-                serve(stream, &shared);
-                live.fetch_sub(1, Ordering::SeqCst);
+                serve(stream, &shared, &waiting);
+                slots.free(id);
             });
             if spawned.is_err() {
-                self.live.fetch_sub(1, Ordering::SeqCst);
+                self.slots.free(id);
             }
         }
     }
@@ -309,11 +347,13 @@ impl Shared {
 }
 
 /// Answers one connection: one request, then the connection closes.
-fn serve(mut s: TcpStream, shared: &Shared) {
+fn serve(mut s: TcpStream, shared: &Shared, waiting: &AtomicBool) {
     let _ = s.set_write_timeout(Some(WRITE_TIMEOUT));
     let _ = s.set_nodelay(true);
     let mut buf = vec![0u8; MAX_HEAD];
     let outcome = read_head(&mut s, &mut buf).and_then(|end| {
+        // From here its slot is not given away: it is being answered.
+        waiting.store(false, Ordering::SeqCst);
         let req = parse(&buf[..end])?;
         match req.host {
             Some(h) if shared.host_ok(h) => {}
