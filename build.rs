@@ -4,7 +4,9 @@
 use std::process::Command;
 
 fn git(args: &[&str]) -> Option<String> {
-    let out = Command::new("git").args(args).output().ok()?;
+    // `--no-optional-locks`: `git status` would otherwise refresh and rewrite the index it is
+    // watched by below, so a fresh clone's first build would make the next one start over.
+    let out = Command::new("git").arg("--no-optional-locks").args(args).output().ok()?;
     out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
 }
 

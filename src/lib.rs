@@ -38,3 +38,13 @@ pub mod tuned;
 pub mod work;
 
 pub use error::{Error, Result};
+
+/// Prints `message` on stderr the first time this process says it (a spec resolved several times
+/// in one command warns once).
+pub fn warn_once(message: &str) {
+    static SAID: std::sync::Mutex<Option<std::collections::HashSet<String>>> = std::sync::Mutex::new(None);
+    let mut said = SAID.lock().unwrap_or_else(|p| p.into_inner());
+    if said.get_or_insert_with(Default::default).insert(message.to_string()) {
+        eprintln!("{message}");
+    }
+}

@@ -99,9 +99,17 @@ fn saved_model_rolls_out_the_recorded_episode_and_evaluates_elsewhere() {
 fn fitness_of_a_best_json_is_its_recorded_fitness_and_seed_config_joins_generation_0() {
     let dir = fresh("policy", "seeded");
     let tiny = ["--quick", "--episodes", "25", "--datasets", "2", "--iterations", "2", "--population", "4"];
+    // --quick's patience genes stop below its 500-epoch cap, and the thesis optimum's patience is
+    // 601: refused there, naming the grid; with the thesis range and a cap above it, it joins.
+    let o = bin().args(["search", "cartpole", "--seed-config", "thesis", "--dry-run"]).args(tiny).output().unwrap();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is not on this search's gene grid"));
+    let wide = std::env::temp_dir().join(format!("bfqi-policy-{}-wide.json", std::process::id()));
+    let patch = serde_json::json!({"search": {"genes": {"a_patience": [10, 99]}, "network": {"max_epochs": 1000}}});
+    std::fs::write(&wide, patch.to_string()).unwrap();
     ok(&bin()
         .args(["search", "cartpole", "--out", dir.to_str().unwrap(), "--seed-config", "thesis"])
         .args(tiny)
+        .args(["--preset", wide.to_str().unwrap()])
         .args(["--generations", "1", "--seed", "3", "--quiet"])
         .output()
         .unwrap());

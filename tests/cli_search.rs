@@ -295,13 +295,15 @@ fn chromosomes_that_decode_alike_share_one_evaluation() {
     // b_p = 0 with a_p in 10..=19: every patience is 2; one activation and one δ_min. Four
     // different chromosomes, one setting.
     let base = tmp("alike");
-    let spec = spec_file(&base, "alike", |v| {
-        v["search"]["genes"] = serde_json::json!({
-            "activations": ["tanh"], "a_delta": [10, 10], "b_delta": [2, 2], "a_patience": [10, 19], "b_patience": [0, 0]
-        });
+    let spec = spec_file(&base, "alike", |_| {});
+    // As a preset, applied after --quick's (which narrows a_patience to its epoch cap).
+    let genes = base.join("alike-genes.json");
+    let ranges = serde_json::json!({
+        "activations": ["tanh"], "a_delta": [10, 10], "b_delta": [2, 2], "a_patience": [10, 19], "b_patience": [0, 0]
     });
+    std::fs::write(&genes, serde_json::json!({"search": {"genes": ranges}}).to_string()).unwrap();
     let dir = base.join("run");
-    let o = search_spec(&spec, &dir, &["--generations", "1"]);
+    let o = search_spec(&spec, &dir, &["--generations", "1", "--preset", genes.to_str().unwrap()]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let g = &generations(&dir)[0];
     let ind = g["individuals"].as_array().unwrap();

@@ -68,6 +68,12 @@ impl GeneRanges {
         Ok(())
     }
 
+    /// The largest patience the ranges decode to (patience grows with a_p and with b_p).
+    pub fn max_patience(&self) -> usize {
+        let c = [0, self.a_delta[0], self.b_delta[0], self.a_patience[1], self.b_patience[1]];
+        decode(&c, self).patience
+    }
+
     /// True when every gene lies in its range.
     pub fn contains(&self, c: &Chromosome) -> bool {
         self.bounds().iter().zip(c).all(|([lo, hi], g)| lo <= g && g <= hi)

@@ -118,8 +118,8 @@ fn copy_units(spec: &Spec, source: &Spec, dir: &Path, from: &Path, role: super::
             }
             _ => {
                 // The file's bytes, so the copy is the unit as computed.
-                let bytes = std::fs::read(theirs.unit_path(&id))
-                    .map_err(|e| Error::File { path: theirs.unit_path(&id), message: e.to_string() })?;
+                let path = theirs.unit_path(&id);
+                let bytes = store::read_checked(&path, store::RECORD_BYTES).map_err(|r| r.at(&path))?;
                 store::write_atomic(&ours.unit_path(&id), |w| std::io::Write::write_all(w, &bytes))?;
             }
         }
@@ -240,6 +240,23 @@ pub fn prepare(
     store::create_run_dir(out, "spec.json", "a run", &results.join(&info.env), "search-", |d| create(d, &spec, &info))
 }
 
+/// A preset's search episodes over a `minari:<id>` one-liner, capped at what each of the data's
+/// disjoint datasets holds (the one-liner sized its own to the data; `--quick`'s 200 would not
+/// fit a 300-episode dataset dealt to 24 datasets), saying so.
+fn fit_preset_to_data(value: &mut serde_json::Value, preset: &Path) {
+    let n = |p: &str| value.pointer(p).and_then(serde_json::Value::as_u64);
+    let (Some(held), Some(asked)) = (n("/data/episodes"), n("/search/episodes")) else { return };
+    let slots: u64 = ["search", "validation", "compare"].iter().filter_map(|r| n(&format!("/data/slots/{r}"))).sum();
+    let each = held / slots.max(1);
+    if slots > 0 && each >= 1 && asked > each {
+        value["search"]["episodes"] = each.into();
+        crate::warn_once(&format!(
+            "note: {}: search.episodes {asked} capped at {each}, the episodes each of the data's {slots} disjoint datasets holds",
+            preset.display()
+        ));
+    }
+}
+
 /// The spec and run record a search would start with, every layer validated, creating nothing
 /// (what `prepare` and a batch plan's check before it runs use).
 pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Result<(Spec, RunInfo)> {
@@ -259,6 +276,9 @@ pub fn resolve(spec_name: &str, presets: &[String], o: &SearchOverrides) -> Resu
             return Err(Error::File { path: from, message: "a preset must be a JSON object of spec fields".into() });
         }
         crate::spec::merge_patch(&mut value, &patch);
+        if crate::dataset::minari::named(spec_name).is_some() {
+            fit_preset_to_data(&mut value, &from);
+        }
         Spec::from_value(value.clone(), &from).map_err(|e| match e {
             Error::File { path, message } => {
                 Error::File { path, message: format!("{message} (applied to {})", origin.display()) }
@@ -386,5 +406,5 @@ pub fn load_spec(dir: &Path) -> Result<Spec> {
             message: "not a search run directory (no spec.json)".into(),
         });
     }
-    Spec::load(&path)
+    Spec::load_recorded(&path)
 }

@@ -78,24 +78,80 @@ pub(super) fn from_minari(name: &str) -> Option<Result<(Value, PathBuf)>> {
     }
     let completed = complete(json!({"env": e, "data": {"minari": id}}), &origin);
     Some(completed.map(|mut v| {
-        fit_to_data(&mut v, logged_episodes);
+        fit_to_data(&mut v, logged_episodes, &origin);
         (v, origin)
     }))
 }
 
+/// The episodes a built-in env's partial spec's logged data holds (`data.file` or `data.minari`,
+/// dealt disjoint), read once; `None` for a bootstrap split, which any data size fits.
+fn logged_episodes(v: &Value) -> Option<usize> {
+    let source: crate::dataset::logged::DataSource = serde_json::from_value(v.get("data")?.clone()).ok()?;
+    if source.split != crate::dataset::logged::Split::Disjoint || source.slots.is_some() {
+        return None;
+    }
+    source.held_episodes(&crate::dataset::minari::python(None)).ok()
+}
+
+/// The fewest episodes per dataset [`fit_to_data`] deals before it asks fewer datasets.
+pub const MIN_EPISODES_PER_DATASET: usize = 4;
+
 /// Sizes a completed spec's datasets to a disjoint split of `episodes` logged episodes: every
 /// dataset's episodes (search, presets, the sample analysis's sizes) at most ⌊episodes / slots⌋,
-/// the slots being the spec's search, validation and comparison datasets. Left as they are when
-/// not even one episode per slot is there (the split's refusal then says so).
-fn fit_to_data(v: &mut Value, episodes: usize) {
-    let n = |p: &str| v.pointer(p).and_then(Value::as_u64).unwrap_or(0) as usize;
-    let compare = ["/experiments/et", "/experiments/mlp"]
-        .iter()
-        .flat_map(|p| [n(&format!("{p}/datasets")), n(&format!("{p}/samples/datasets"))])
-        .max()
-        .unwrap_or(0);
-    let slots = n("/search/datasets") + n("/search/validate/datasets") + compare;
+/// the slots being the spec's search, validation and comparison datasets. When that is fewer
+/// than [`MIN_EPISODES_PER_DATASET`], fewer datasets are asked (each count scaled down, at least
+/// one), so that small data still makes datasets of a few episodes. What it chose is said on
+/// stderr, with a warning when it is little.
+fn fit_to_data(v: &mut Value, episodes: usize, origin: &Path) {
+    let n = |v: &Value, p: &str| v.pointer(p).and_then(Value::as_u64).unwrap_or(0) as usize;
+    let counts = [
+        "/search/datasets",
+        "/search/validate/datasets",
+        "/experiments/et/datasets",
+        "/experiments/mlp/datasets",
+        "/experiments/et/samples/datasets",
+        "/experiments/mlp/samples/datasets",
+    ];
+    let slots = |v: &Value| {
+        let compare = counts[2..].iter().map(|p| n(v, p)).max().unwrap_or(0);
+        n(v, counts[0]) + n(v, counts[1]) + compare
+    };
+    let asked = slots(v);
+    if asked == 0 || episodes == 0 {
+        return;
+    }
+    if episodes / asked < MIN_EPISODES_PER_DATASET {
+        let room = (episodes / MIN_EPISODES_PER_DATASET).max(1);
+        for p in counts {
+            if let Some(x) = v.pointer_mut(p)
+                && let Some(c) = x.as_u64()
+            {
+                *x = json!(((c as usize * room) / asked).max(1));
+            }
+        }
+        // The validation's top cannot exceed what it validates on; its top settings stay.
+    }
+    let slots = slots(v);
     let each = episodes / slots.max(1);
+    let said = format!(
+        "{}: the data holds {episodes} episodes: dealt to {} search, {} validation and {} comparison datasets of {} \
+         episode(s) each{}",
+        origin.display(),
+        n(v, counts[0]),
+        n(v, counts[1]),
+        slots - n(v, counts[0]) - n(v, counts[1]),
+        each.min(n(v, "/search/episodes").max(1)),
+        if asked != slots {
+            format!(" (the spec asks {asked} datasets: fewer, so each has a few episodes)")
+        } else {
+            String::new()
+        }
+    );
+    crate::warn_once(&if each < 2 * MIN_EPISODES_PER_DATASET {
+        format!("warning: {said}; that is little data: results will vary much from dataset to dataset")
+    } else {
+        format!("note: {said}")
+    });
     if each == 0 {
         return;
     }
@@ -120,7 +176,21 @@ fn fit_to_data(v: &mut Value, episodes: usize) {
 /// is): probes the env, refuses a stale `env.probed`, records the probe, and when `seed`,
 /// `experiments` or `search` is left out, merges the spec over the template.
 pub(super) fn complete(mut value: Value, origin: &Path) -> Result<Value> {
-    if value.pointer("/env/name").and_then(Value::as_str) != Some("gymnasium") {
+    let name = value.pointer("/env/name").and_then(Value::as_str).map(String::from);
+    if let Some(builtin) = name.as_deref().filter(|n| crate::env::NAMES.contains(n)) {
+        // A built-in env's partial spec (`{"env": {"name": "cartpole"}, "data": …}`) is completed
+        // from that env's own spec, the user's fields merged over it.
+        if ["seed", "experiments", "search"].iter().all(|k| value.get(k).is_some()) {
+            return Ok(value);
+        }
+        let (mut base, _) = super::Spec::resolve_value(builtin)?;
+        merge_patch(&mut base, &value);
+        if let Some(episodes) = logged_episodes(&base) {
+            fit_to_data(&mut base, episodes, origin);
+        }
+        return Ok(base);
+    }
+    if name.as_deref() != Some("gymnasium") {
         return Ok(value);
     }
     let probed = probe(&value, origin)?;

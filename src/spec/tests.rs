@@ -34,6 +34,27 @@ fn presets_overlay_the_spec() {
 }
 
 #[test]
+fn an_epoch_cap_inside_the_patience_range_is_named_and_quick_keeps_below_its_cap() {
+    for name in NAMES {
+        let (s, _) = Spec::resolve(name).unwrap();
+        assert_eq!(s.search.genes.max_patience(), 991, "{name}: the thesis range");
+        assert_eq!(s.cap_inside_patience(), None, "{name}: the thesis cap of 5000 lies above it");
+        let (mut v, origin) = Spec::resolve_value(name).unwrap();
+        merge_patch(&mut v, &load_preset("quick").unwrap().0);
+        let q = Spec::from_value(v, &origin).unwrap();
+        assert_eq!(q.cap_inside_patience(), None, "{name} --quick");
+        assert!(q.search.genes.max_patience() < q.search.network.max_epochs, "{name}");
+        assert_eq!(q.search.genes.a_delta, s.search.genes.a_delta, "only the patience range follows the cap");
+    }
+    let (mut v, origin) = Spec::resolve_value("cartpole").unwrap();
+    v["search"]["network"]["max_epochs"] = 500.into();
+    let w = Spec::from_value(v, &origin).unwrap().cap_inside_patience().unwrap();
+    for needle in ["search.network.max_epochs = 500", "search.genes.a_patience [10, 99]", "b_patience [0, 2]", "991"] {
+        assert!(w.contains(needle), "{w} (expected {needle})");
+    }
+}
+
+#[test]
 fn errors_name_file_and_field() {
     let origin = Path::new("my.json");
     let base = BUILTIN[2].1;
