@@ -62,8 +62,45 @@ def _env_spec(ds):
     return {"id": spec.id, "kwargs": dict(spec.kwargs or {}), "max_episode_steps": spec.max_episode_steps}
 
 
+# The largest file of a dataset read (its metadata is kilobytes, an episode file megabytes).
+FILE_BYTES = 16 << 30
+
+
+def _check_files(dataset_id):
+    """Every file of a local dataset is a regular file within FILE_BYTES: a FIFO would hang
+    minari's open, a device (/dev/zero) be read until memory ran out, and an episode file minari
+    cannot read be skipped without a word."""
+    import os
+    import stat
+
+    try:
+        from minari.storage.datasets_root_dir import get_dataset_path
+
+        root = str(get_dataset_path(dataset_id))
+    except Exception:  # another minari layout: minari's own checks apply
+        return
+    if not os.path.isdir(root):
+        return
+    for folder, dirs, files in os.walk(root):
+        for name in dirs + files:
+            p = os.path.join(folder, name)
+            try:
+                st = os.stat(p)  # links followed: what minari would open
+            except OSError as e:
+                raise Refused("data.minari", f"{dataset_id}: {p} cannot be read ({e.strerror})") from e
+            if name in dirs:
+                if os.path.islink(p):
+                    raise Refused("data.minari", f"{dataset_id}: {p} is a link to a folder, which is not followed")
+                continue
+            if not stat.S_ISREG(st.st_mode):
+                raise Refused("data.minari", f"{dataset_id}: {p} is not a regular file (a FIFO, a device or a socket)")
+            if st.st_size > FILE_BYTES:
+                raise Refused("data.minari", f"{dataset_id}: {p} is larger than {FILE_BYTES >> 30} GiB")
+
+
 def read(dataset_id, out):
     minari, np = _imports()
+    _check_files(dataset_id)
     try:
         ds = minari.load_dataset(dataset_id)
     except Exception as e:  # minari raises several kinds for a missing or damaged dataset
@@ -72,10 +109,12 @@ def read(dataset_id, out):
     header = ["episode", "step"] + [f"state_{i}" for i in range(d)] + ["action", "reward"]
     header += [f"next_state_{i}" for i in range(d)] + ["terminated", "truncated"]
     steps = 0
+    read_ids = []
     with open(out, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(header)
         for e, ep in enumerate(ds.iterate_episodes()):
+            read_ids.append(ep.id)
             obs = np.asarray(ep.observations, dtype=np.float64).reshape(len(ep.observations), d)
             acts = np.asarray(ep.actions).reshape(len(ep.rewards))
             rew = np.asarray(ep.rewards, dtype=np.float64)
@@ -93,6 +132,13 @@ def read(dataset_id, out):
                 row += [int(last and term), int(last and not term)]
                 w.writerow(row)
             steps += n
+    if len(read_ids) != ds.total_episodes:
+        missing = sorted(set(range(ds.total_episodes)) - set(read_ids))
+        shown = ", ".join(str(i) for i in missing[:10]) + (", ..." if len(missing) > 10 else "")
+        raise Refused(
+            "data.minari",
+            f"{dataset_id}: {len(read_ids)} of its {ds.total_episodes} episodes could be read (not episode {shown})",
+        )
     import gymnasium
 
     print(json.dumps({

@@ -203,9 +203,21 @@ pub(crate) fn unknown_tag<E: serde::de::Error>(tag: &str, value: &str, variants:
 pub(crate) fn short_number(s: String) -> String {
     match s.parse::<f64>() {
         Ok(x) if s.len() > 24 && x.is_finite() => format!("{x:e}"),
-        _ => s,
+        _ => shortened(s),
     }
 }
+
+/// A value as errors echo it: at most [`ECHOED`] characters, the rest counted (a 100,000-character
+/// id is not a 400 kB line).
+pub(crate) fn shortened(s: String) -> String {
+    match s.char_indices().nth(ECHOED) {
+        Some((at, _)) => format!("{}… ({} characters)", &s[..at], s.chars().count()),
+        None => s,
+    }
+}
+
+/// The most characters of a value an error echoes.
+pub(crate) const ECHOED: usize = 200;
 
 /// The library's result type.
 pub type Result<T, E = Error> = std::result::Result<T, E>;

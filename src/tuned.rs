@@ -183,7 +183,10 @@ impl TunedConfig {
                         "thesis: the thesis has no optimum for {env} (it tuned {} only); give a search's best.json",
                         crate::env::NAMES.join(", ")
                     )),
-                    _ => Error::UnknownEnv { name: env.to_string(), valid: crate::env::NAMES.join(", ") },
+                    _ => Error::UnknownEnv {
+                        name: crate::error::shortened(env.to_string()),
+                        valid: crate::env::NAMES.join(", "),
+                    },
                 })?;
             let origin = PathBuf::from(format!("<built-in searches/tuned/{env}.json>"));
             return Ok((Self::parse(text, &origin)?, origin));

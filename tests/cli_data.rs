@@ -192,3 +192,29 @@ fn a_one_row_log_is_refused_naming_the_file_and_an_unflagged_end_is_warned_of() 
     assert!(err.contains("end with neither terminated nor truncated: read as truncated"), "warned: {err}");
     assert!(!err.contains("invalid episodes"), "{err}");
 }
+
+#[test]
+fn a_partial_spec_of_a_built_in_env_is_completed_from_its_spec() {
+    let dir = tmp("partial");
+    let log = dir.join("log.parquet");
+    ok(&bin().args(["dataset", "cartpole", "--episodes", "180", "--seed", "2", "--out"]).arg(&log).output().unwrap());
+    let spec = dir.join("mine.json");
+    std::fs::write(&spec, serde_json::json!({"env": {"name": "cartpole"}, "data": {"file": log}}).to_string()).unwrap();
+    let o = bin().args(["search", spec.to_str().unwrap(), "--dry-run"]).output().unwrap();
+    ok(&o);
+    let out = String::from_utf8_lossy(&o.stdout);
+    let v: serde_json::Value = serde_json::from_str(&out[out.find('{').unwrap()..]).unwrap();
+    let thesis: serde_json::Value = json("searches/cartpole.json");
+    assert_eq!(v["seed"], thesis["seed"]);
+    for k in ["hidden", "max_epochs", "batch_size", "learning_rate"] {
+        assert_eq!(v["search"]["network"][k], thesis["search"]["network"][k], "the cart-pole spec's search: {k}");
+    }
+    assert_eq!(v["data"]["episodes"], 180);
+    // However many datasets the spec asks, each gets 4 episodes or more: fewer are asked if need be.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("holds 180 episodes: dealt to"), "{err}");
+    assert!(v["search"]["episodes"].as_u64().unwrap() >= 4, "{}", v["search"]);
+    // A simulator's dataset still needs its size.
+    let o = bin().args(["dataset", "cartpole", "--out"]).arg(dir.join("x.csv")).output().unwrap();
+    assert!(!o.status.success() && String::from_utf8_lossy(&o.stderr).contains("--episodes is needed"));
+}

@@ -195,3 +195,31 @@ fn a_gymnasium_action_is_named_as_written_not_as_rust_debugs_it() {
     let err = fails(&d, &["search", "spec.json", "--dry-run"], 2, &["env.actions[1] = [1, 2]:"]);
     assert!(!err.contains("Vector"), "{err}");
 }
+
+#[test]
+fn a_huge_name_is_echoed_short_and_a_refused_host_does_not_say_it_serves() {
+    let d = empty_dir("messages", "huge-id");
+    let id = "x".repeat(100_000);
+    let err = fails(&d, &["search", &id, "--dry-run"], 2, &["unknown environment", "(100000 characters)"]);
+    assert!(err.len() < 2_000, "{} bytes", err.len());
+    let minari = format!("minari:{id}");
+    let o = bin()
+        .current_dir(&d)
+        .args(["search", &minari, "--dry-run"])
+        .env("BFQI_PYTHON", "/nonexistent/python")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.len() < 2_000 && err.contains("characters)"),
+        "{} bytes: {}",
+        err.len(),
+        &err[..err.len().min(300)]
+    );
+    // An address that cannot be bound: refused, without first saying it serves there.
+    std::fs::create_dir_all(d.join("results")).unwrap();
+    let o = bin().current_dir(&d).args(["dashboard", "--host", "192.0.2.1", "--port", "1"]).output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("cannot listen on 192.0.2.1:1"), "{err}");
+    assert!(!err.contains("serving on"), "{err}");
+}

@@ -227,6 +227,73 @@ make("bfqi/dict-v0", {"a": np.zeros((3, 4))}, gym.spaces.Dict({"a": box}), [1.0,
 }
 
 #[test]
+fn a_dataset_with_a_fifo_or_a_device_among_its_files_is_refused_naming_it() {
+    let Some(py) = minari_python() else { return };
+    let dir = empty_dir("minari", "special-files");
+    let store = dir.join("datasets");
+    let id = "bfqi/cartpole-small-v0";
+    let args = ["dataset", "cartpole", "--episodes", "12", "--seed", "5", "--minari", id];
+    ok(&tool(&py, &store).args(args).output().unwrap());
+    let data = store.join(id).join("data");
+    let read = || {
+        tool(&py, &store).args(["dataset", &format!("minari:{id}"), "--out"]).arg(dir.join("x.csv")).output().unwrap()
+    };
+    ok(&read());
+    // The dataset's metadata a FIFO (minari's open of it would wait for a writer for ever), then an
+    // episode's file a link to /dev/zero (it was skipped: 11 of 12 episodes read, exit 0).
+    let meta = data.join("metadata.json");
+    let saved = std::fs::read(&meta).unwrap();
+    std::fs::remove_file(&meta).unwrap();
+    let c = std::ffi::CString::new(meta.to_str().unwrap()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    refused(&read(), &["data.minari", "metadata.json", "not a regular file"]);
+    std::fs::remove_file(&meta).unwrap();
+    std::fs::write(&meta, saved).unwrap();
+    let episode = std::fs::read_dir(data.join("3"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|x| x == "arrow"))
+        .unwrap();
+    std::fs::remove_file(&episode).unwrap();
+    std::os::unix::fs::symlink("/dev/zero", &episode).unwrap();
+    refused(&read(), &["data.minari", &episode.file_name().unwrap().to_string_lossy(), "not a regular file"]);
+    // An episode minari cannot read (its folder gone) is named, not dropped.
+    std::fs::remove_dir_all(data.join("3")).unwrap();
+    let o = read();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("data.minari") && !err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn small_minari_data_in_one_line_is_dealt_to_fewer_datasets_and_written_whole() {
+    let Some(py) = minari_python() else { return };
+    let dir = empty_dir("minari", "small");
+    let store = dir.join("datasets");
+    for (id, episodes) in [("bfqi/cartpole-40-v0", "40"), ("bfqi/cartpole-300-v0", "300")] {
+        let args = ["dataset", "gymnasium:CartPole-v1", "--episodes", episodes, "--seed", "4", "--minari", id];
+        ok(&tool(&py, &store).args(args).output().unwrap());
+    }
+    // `dataset minari:<id>` writes the whole dataset.
+    let whole = dir.join("whole.csv");
+    ok(&tool(&py, &store).args(["dataset", "minari:bfqi/cartpole-40-v0", "--out"]).arg(&whole).output().unwrap());
+    assert_eq!(table_episodes(&whole).len(), 40);
+    // 40 episodes cannot fill the template's 60 datasets: fewer are asked, and it says so.
+    let said = ok(&tool(&py, &store).args(["search", "minari:bfqi/cartpole-40-v0", "--dry-run"]).output().unwrap());
+    assert!(said.contains("holds 40 episodes: dealt to") && said.contains("little data"), "{said}");
+    let spec: Value = serde_json::from_str(&said[said.find('{').unwrap()..said.rfind('}').unwrap() + 1]).unwrap();
+    let slots = &spec["data"]["slots"];
+    let total: u64 = ["search", "validation", "compare"].iter().map(|r| slots[r].as_u64().unwrap()).sum();
+    assert!(total * 4 <= 40 && spec["search"]["episodes"].as_u64().unwrap() >= 4, "{slots} {}", spec["search"]);
+    // `--quick` on 300 episodes: the preset's 200 episodes are capped at what a dataset holds.
+    let said = ok(&tool(&py, &store)
+        .args(["search", "minari:bfqi/cartpole-300-v0", "--quick", "--dry-run"])
+        .output()
+        .unwrap());
+    assert!(said.contains("search.episodes 200 capped at 5"), "{said}");
+}
+
+#[test]
 fn the_committed_minari_example_reproduces_from_its_committed_dataset() {
     let Some(py) = minari_python() else { return };
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("results/minari");

@@ -50,6 +50,7 @@ pub fn dashboard(json_out: bool) -> Result<Value> {
         stop();
         result
     })?;
+    let committed = committed_runs()?;
     let peak = memory_kib("VmHWM");
     // The first paint needs the page, then its script and its JSON (fetched one after the other).
     let paint_cold: f64 = rows[1..].iter().map(|r| r.1).sum();
@@ -74,8 +75,27 @@ pub fn dashboard(json_out: bool) -> Result<Value> {
             ),
             _ => println!("memory: not measured (no /proc/self/status)"),
         }
+        let c = &committed;
+        println!(
+            "every committed run's page, first view (Work table from work.json): {} runs, median {:.0} ms, slowest {:.0} ms ({}) (target < 1000 ms)",
+            c.views.len(),
+            c.median * 1e3,
+            c.slowest.1 * 1e3,
+            c.slowest.0
+        );
+        println!(
+            "{} overlapping first requests for {}: {:.0} ms for the last to be answered (they share one reading)",
+            OVERLAPPING,
+            c.slowest.0,
+            c.overlapping * 1e3
+        );
     }
     Ok(json!({
+        "committed_runs": committed.views.iter().map(|(p, s)| json!({"path": p, "first_s": s})).collect::<Vec<_>>(),
+        "committed_first_view_median_s": committed.median,
+        "committed_first_view_slowest_s": committed.slowest.1,
+        "overlapping_requests": OVERLAPPING,
+        "overlapping_last_s": committed.overlapping,
         "units": units,
         "requests": rows.iter().map(|(p, c, w, b)| json!({"path": p, "first_s": c, "median_s": w, "bytes": b})).collect::<Vec<_>>(),
         "first_paint_first_s": paint_cold,
@@ -83,6 +103,66 @@ pub fn dashboard(json_out: bool) -> Result<Value> {
         "rss_before_kib": rss_before,
         "peak_rss_kib": peak,
     }))
+}
+
+/// Requests for one page sent at once, in [`committed_runs`].
+const OVERLAPPING: usize = 6;
+
+/// First views of the committed runs' pages.
+struct Committed {
+    /// Each run's page and the seconds of its first view.
+    views: Vec<(String, f64)>,
+    median: f64,
+    /// The slowest page and its seconds.
+    slowest: (String, f64),
+    /// The slowest page asked [`OVERLAPPING`] times at once by a fresh server: seconds until the
+    /// last answer.
+    overlapping: f64,
+}
+
+/// Serves `results/` and views each run's page once (each view the first of its run in this
+/// server), then asks the slowest page of a fresh server [`OVERLAPPING`] times at once.
+fn committed_runs() -> Result<Committed> {
+    let serve = |f: &mut dyn FnMut(&str) -> Result<()>| -> Result<()> {
+        let d = Dashboard::bind(&Options { roots: vec!["results".into()], host: "127.0.0.1".into(), port: 0 })?;
+        let addr = d.url().trim_start_matches("http://").trim_end_matches('/').to_string();
+        let stop = d.stopper();
+        std::thread::scope(|s| {
+            s.spawn(|| d.run());
+            let r = f(&addr);
+            stop();
+            r
+        })
+    };
+    let runs = crate::dashboard::discover::Roots::new(&["results".into()])?.runs();
+    let mut views = Vec::new();
+    serve(&mut |addr| {
+        for r in &runs {
+            let url = r.url();
+            let t = Instant::now();
+            get(addr, &url)?;
+            views.push((url, t.elapsed().as_secs_f64()));
+        }
+        Ok(())
+    })?;
+    let mut sorted: Vec<f64> = views.iter().map(|v| v.1).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let slowest = views.iter().max_by(|a, b| a.1.total_cmp(&b.1)).cloned().unwrap_or_default();
+    let mut overlapping = 0.0;
+    crate::dashboard::runs::forget_works();
+    serve(&mut |addr| {
+        let t = Instant::now();
+        std::thread::scope(|s| {
+            let asks: Vec<_> = (0..OVERLAPPING).map(|_| s.spawn(|| get(addr, &slowest.0))).collect();
+            asks.into_iter().try_for_each(|a| {
+                a.join().unwrap_or_else(|_| Err(Error::Usage("a request panicked".into()))).map(|_| ())
+            })
+        })?;
+        overlapping = t.elapsed().as_secs_f64();
+        Ok(())
+    })?;
+    Ok(Committed { views, median, slowest, overlapping })
 }
 
 /// One GET over a fresh connection; the response's size. A status other than 200 is an error.

@@ -14,9 +14,11 @@ use std::path::PathBuf;
 pub struct DatasetArgs {
     /// Environment: pendulum, cartpole or bicycle, or a spec file (e.g. of a gymnasium env).
     pub env: String,
-    /// Number of episodes: random-policy ones, or taken from a spec's logged data (`data`).
+    /// Number of episodes: random-policy ones, or taken from a spec's logged data (`data`). With
+    /// logged data (`minari:<id>`, a spec with `data`) and no --episodes, the whole data is written,
+    /// in its own order.
     #[arg(long)]
-    pub episodes: usize,
+    pub episodes: Option<usize>,
     /// Master seed: the file is dataset INDEX of ROLE under this seed, exactly as runs use it.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -105,13 +107,20 @@ pub struct WorkerArgs {
 }
 
 pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
+    // A Minari dataset written whole needs no env to evaluate in (it may record none).
+    if let (None, Some(id), Some(out), None) = (a.episodes, dataset::minari::named(&a.env), &a.out, &a.minari) {
+        let d = dataset::logged::DataSource::minari(id).whole(&dataset::minari::python(None))?;
+        dataset::table::write(&d, out)?;
+        eprintln!("wrote {} transitions of {} episodes to {}", d.len(), d.episodes(), out.display());
+        return Ok(Outcome::Success);
+    }
     let (env, data) = if NAMES.contains(&a.env.as_str()) {
         (EnvConfig::by_name(&a.env)?, None)
     } else {
         let spec = Spec::resolve(&a.env)?.0;
         (spec.env, spec.data)
     };
-    anyhow::ensure!(a.episodes >= 1, "invalid --episodes = 0: must be ≥ 1");
+    anyhow::ensure!(a.episodes != Some(0), "invalid --episodes = 0: must be ≥ 1");
     if let Some(out) = &a.out {
         anyhow::ensure!(
             crate::table::Format::of_path(out).is_some(),
@@ -119,15 +128,25 @@ pub(super) fn dataset(a: DatasetArgs) -> Result<Outcome> {
             out.display()
         );
     }
-    crate::limits::episodes("--episodes", a.episodes, env.env().horizon())?;
-    let d = dataset::make(env.env(), data.as_ref(), a.episodes, a.seed, a.role, a.index)?;
+    let d = match (a.episodes, &data) {
+        (Some(episodes), _) => {
+            crate::limits::episodes("--episodes", episodes, env.env().horizon())?;
+            dataset::make(env.env(), data.as_ref(), episodes, a.seed, a.role, a.index)?
+        }
+        (None, Some(logged)) => logged.whole(&dataset::minari::python(Some(&env)))?,
+        (None, None) => anyhow::bail!(
+            "--episodes is needed: {} collects random-policy episodes (only logged data is written whole without it)",
+            a.env
+        ),
+    };
+    let episodes = d.episodes();
     if let Some(out) = &a.out {
         dataset::table::write(&d, out)?;
-        eprintln!("wrote {} transitions of {} episodes to {}", d.len(), a.episodes, out.display());
+        eprintln!("wrote {} transitions of {episodes} episodes to {}", d.len(), out.display());
     }
     if let Some(id) = &a.minari {
         dataset::minari::write(&d, &env, id)?;
-        eprintln!("wrote {} transitions of {} episodes as the Minari dataset {id}", d.len(), a.episodes);
+        eprintln!("wrote {} transitions of {episodes} episodes as the Minari dataset {id}", d.len());
     }
     Ok(Outcome::Success)
 }

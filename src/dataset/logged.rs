@@ -168,8 +168,8 @@ fn load(source: &DataSource, python: &str) -> Result<Arc<Logged>> {
             (crate::store::fnv1a_file(path)?, data, None)
         }
         (_, Some(id)) => {
-            let (bytes, data, info) = super::minari::read(id, python)?;
-            (crate::store::fnv1a(&bytes), data, Some(info))
+            let (hash, data, info) = super::minari::read(id, python)?;
+            (hash, data, Some(info))
         }
         _ => unreachable!("checked above"),
     };
@@ -350,6 +350,17 @@ impl DataSource {
             (Split::Disjoint, None) => Err(Error::invalid("data.slots", "absent", "the spec was not resolved")),
             (Split::Bootstrap, _) => Ok(()),
         }
+    }
+
+    /// The episodes the data holds, read (and cached) as [`Self::resolve`] reads it.
+    pub fn held_episodes(&self, python: &str) -> Result<usize> {
+        Ok(load(self, python)?.episodes())
+    }
+
+    /// Every logged transition, in the data's own order: `bfqi-ga dataset` of logged data
+    /// without `--episodes`.
+    pub fn whole(&self, python: &str) -> Result<Dataset> {
+        Ok(load(self, python)?.data.clone())
     }
 
     /// The refusal of a logged dataset too small to learn from (`why`: an action it lacks, a network

@@ -54,15 +54,70 @@ fn scratch(what: &str) -> PathBuf {
     std::env::temp_dir().join(format!("bfqi-minari-{}-{n}-{what}", std::process::id()))
 }
 
-/// Runs the bridge; a refusal comes back as `field: message` on its stderr.
+/// How long the bridge may take to read or write a dataset before it is stopped: a FIFO or a
+/// device among a dataset's files, or a hung import, fails in bounded time.
+pub const BRIDGE_SECONDS: u64 = 600;
+
+/// What of the bridge's stdout and stderr is kept: it prints one JSON line, or one error line.
+const BRIDGE_OUTPUT: u64 = 1 << 20;
+
+/// Runs the bridge; a refusal comes back as `field: message` on its stderr. It is stopped after
+/// [`BRIDGE_SECONDS`], and what it prints is kept up to [`BRIDGE_OUTPUT`] bytes.
 fn run(python: &str, id: &str, args: &[&std::ffi::OsStr]) -> Result<String> {
-    let out = Command::new(python).arg("-c").arg(SOURCE).args(args).output().map_err(|e| {
-        Error::invalid(
-            "data.minari",
-            id,
-            format!("cannot start {python} ({e}): set BFQI_PYTHON to a Python with minari (pip install minari)"),
-        )
-    })?;
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = Command::new(python)
+        .arg("-c")
+        .arg(SOURCE)
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| {
+            Error::invalid(
+                "data.minari",
+                id,
+                format!("cannot start {python} ({e}): set BFQI_PYTHON to a Python with minari (pip install minari)"),
+            )
+        })?;
+    let capped = |r: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut out = Vec::new();
+            if let Some(r) = r {
+                let mut r = r.take(BRIDGE_OUTPUT);
+                let _ = r.read_to_end(&mut out);
+                // The rest is read and dropped, so the bridge never blocks on a full pipe.
+                let _ = std::io::copy(&mut r.into_inner(), &mut std::io::sink());
+            }
+            out
+        })
+    };
+    let stdout = capped(child.stdout.take().map(|s| Box::new(s) as Box<dyn Read + Send>));
+    let stderr = capped(child.stderr.take().map(|s| Box::new(s) as Box<dyn Read + Send>));
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(BRIDGE_SECONDS);
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) if std::time::Instant::now() < deadline => {
+                std::thread::sleep(std::time::Duration::from_millis(20))
+            }
+            _ => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(Error::invalid(
+                    "data.minari",
+                    id,
+                    format!("the Minari bridge ({python}) did not finish within {BRIDGE_SECONDS} s and was stopped"),
+                ));
+            }
+        }
+    };
+    let out = std::process::Output {
+        status,
+        stdout: stdout.join().unwrap_or_default(),
+        stderr: stderr.join().unwrap_or_default(),
+    };
     if !out.status.success() {
         let err = String::from_utf8_lossy(&out.stderr);
         let line = err.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("no message");
@@ -73,18 +128,17 @@ fn run(python: &str, id: &str, args: &[&std::ffi::OsStr]) -> Result<String> {
     Ok(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-/// Minari dataset `id` as the bridge wrote it (CSV bytes, for the content hash), read into a
-/// dataset, with what the bridge said of it.
-pub fn read(id: &str, python: &str) -> Result<(Vec<u8>, Dataset, Info)> {
+/// Minari dataset `id` as the bridge wrote it (the FNV-1a of its CSV: the content hash), read
+/// into a dataset, with what the bridge said of it.
+pub fn read(id: &str, python: &str) -> Result<(u64, Dataset, Info)> {
     let csv = scratch("read.csv");
     let result = (|| {
         let stdout = run(python, id, &["read".as_ref(), id.as_ref(), csv.as_os_str()])?;
         let line = stdout.lines().rev().find(|l| l.starts_with('{')).unwrap_or("");
         let info: Info = serde_json::from_str(line)
             .map_err(|e| Error::invalid("data.minari", id, format!("the bridge answered {line:?} ({e})")))?;
-        let bytes = std::fs::read(&csv).map_err(|err| Error::Io { path: csv.clone(), err })?;
         let data = super::table::read(&csv).map_err(|e| Error::invalid("data.minari", id, e.to_string()))?;
-        Ok((bytes, data, info))
+        Ok((crate::store::fnv1a_file(&csv)?, data, info))
     })();
     let _ = std::fs::remove_file(&csv);
     result

@@ -189,7 +189,7 @@ impl EnvConfig {
                  {\"name\": \"gymnasium\", \"id\": \"CartPole-v1\", …} (see the README's Gymnasium section)"
                     .into(),
             )),
-            _ => Err(Error::UnknownEnv { name: name.to_string(), valid: NAMES.join(", ") }),
+            _ => Err(Error::UnknownEnv { name: crate::error::shortened(name.to_string()), valid: NAMES.join(", ") }),
         }
     }
 

@@ -210,6 +210,8 @@ impl Format {
 
 /// Writes `table` to `path` atomically in `format`.
 pub fn write(table: &Table, path: &Path, format: Format) -> Result<()> {
+    // A table can be 100 MB: what a killed writer of this file left is removed first.
+    crate::store::remove_stale_temporaries(path);
     match format {
         Format::Parquet => parquet::write(table, path),
         Format::Csv => csv::write(table, path),

@@ -93,13 +93,31 @@ fn default_timeout() -> f64 {
 }
 
 /// One entry of `env.actions`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum ActionValue {
     /// A Discrete action id, or the value of a one-value Box.
     Scalar(f64),
     /// The vector sent to a Box of several values.
     Vector(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for ActionValue {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        // By hand, so that a wrong entry is told what is expected, not "untagged enum ActionValue".
+        match serde_json::Value::deserialize(d)? {
+            serde_json::Value::Number(n) => n.as_f64().map(ActionValue::Scalar),
+            serde_json::Value::Array(v) => {
+                v.iter().map(serde_json::Value::as_f64).collect::<Option<_>>().map(ActionValue::Vector)
+            }
+            _ => None,
+        }
+        .ok_or_else(|| {
+            serde::de::Error::custom(
+                "an action is a number (a Discrete id, a one-value Box) or an array of numbers (a Box)",
+            )
+        })
+    }
 }
 
 impl std::fmt::Display for ActionValue {
@@ -611,5 +629,20 @@ impl Env for GymConfig {
     }
     fn gymnasium(&self) -> Option<&GymConfig> {
         Some(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ActionValue;
+
+    #[test]
+    fn an_action_that_is_no_number_is_told_what_an_action_is() {
+        assert_eq!(serde_json::from_str::<ActionValue>("2").unwrap(), ActionValue::Scalar(2.0));
+        assert_eq!(serde_json::from_str::<ActionValue>("[1, -1]").unwrap(), ActionValue::Vector(vec![1.0, -1.0]));
+        for bad in ["\"a\"", "[1, \"b\"]", "{}", "null"] {
+            let e = serde_json::from_str::<ActionValue>(bad).unwrap_err().to_string();
+            assert!(e.contains("an action is a number") && !e.contains("untagged"), "{bad}: {e}");
+        }
     }
 }
