@@ -270,3 +270,39 @@ fn a_reader_that_stops_early_ends_the_export_quietly() {
     assert!(o.status.success(), "{:?}: {}", o.status, String::from_utf8_lossy(&o.stderr));
     assert!(o.stderr.is_empty(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// A Parquet file pyarrow writes with page checksums: read; a flipped bit in a page is caught by
+/// its checksum (the same flip without checksums reads back as another number).
+#[test]
+fn parquet_page_checksums_are_checked_on_read() {
+    let Some(py) = pandas_python() else { return };
+    let tmp = common::empty_dir("export", "crc");
+    let write = |name: &str, crc: bool| {
+        let p = tmp.join(name);
+        let code = format!(
+            "import pyarrow as pa, pyarrow.parquet as pq\n\
+             pq.write_table(pa.table({{'x': [float(i) + 0.125 for i in range(1000)]}}), {:?}, compression='NONE', write_page_checksum={})",
+            p.to_str().unwrap(),
+            if crc { "True" } else { "False" }
+        );
+        let o = Command::new(&py).args(["-c", &code]).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        p
+    };
+    let flip = |p: &std::path::Path| {
+        let mut bytes = std::fs::read(p).unwrap();
+        let needle = 500.125f64.to_le_bytes();
+        let at = bytes.windows(8).position(|w| w == needle).expect("the value's bytes in the page");
+        bytes[at + 7] ^= 0x01;
+        std::fs::write(p, bytes).unwrap();
+    };
+    let (with, without) = (write("crc.parquet", true), write("plain.parquet", false));
+    assert_eq!(bfqi_ga::table::read(&with).unwrap().rows(), 1000);
+    flip(&with);
+    flip(&without);
+    let e = bfqi_ga::table::read(&with).unwrap_err().to_string();
+    assert!(e.contains("crc.parquet") && e.to_lowercase().contains("crc"), "{e}");
+    let t = bfqi_ga::table::read(&without).unwrap();
+    let Some(bfqi_ga::table::Column::Float(x)) = t.column("x") else { panic!() };
+    assert_ne!(x[500], 500.125, "unchecked, the flip goes unseen");
+}

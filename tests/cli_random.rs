@@ -135,7 +135,12 @@ fn a_random_search_draws_from_the_gene_ranges_and_shares_the_gas_units() {
     for s in &used {
         assert!(rnd.join("units").join(format!("{s}.d0.json")).is_file(), "{s}'s units were removed");
     }
-    assert_eq!(work(), work_before, "tidy removed a unit the search used");
+    // The same work, from other files (its fingerprint names them).
+    let counted = |mut w: Value| {
+        w.as_object_mut().unwrap().remove("sources");
+        w
+    };
+    assert_eq!(counted(work()), counted(work_before), "tidy removed a unit the search used");
     ok(&bin().arg("report").arg(&rnd).output().unwrap());
     assert_eq!(report, common::read(rnd.join("report.md")), "the report rebuilds the same after tidy");
     let st = bin().arg("status").arg(&rnd).output().unwrap();

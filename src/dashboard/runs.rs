@@ -194,7 +194,7 @@ pub fn work(run: &Run) -> Option<Table> {
         let mut held = slot.lock().ok()?;
         let roots = Some(std::sync::Arc::new(vec![run.base.clone()]));
         crate::store::confined(roots, || {
-            let now = crate::work::fingerprint(&run.dir).ok()?;
+            let now = crate::work::fingerprint(&run.dir).map_err(|e| run.note(format!("work: {e}"))).ok()?;
             match held.as_ref() {
                 Some((f, w)) if *f == now => Some(w.clone()),
                 _ => match crate::work::cached(&run.dir) {

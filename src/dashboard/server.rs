@@ -10,8 +10,8 @@
 //!   [`WRITE_TIMEOUT`];
 //! - at most [`MAX_CONNECTIONS`] connections are served at once, each on a thread of its own; at
 //!   the cap a new connection takes the slot of the oldest one still waiting for its request head
-//!   (closed), so idle clients cannot starve a normal request; when every slot is answering one,
-//!   it is answered 503 at once, without blocking the accepting thread;
+//!   after [`EVICT_AFTER`] (closed), so idle clients cannot starve a normal request; when no slot
+//!   can be taken, it is answered 503 at once, without blocking the accepting thread;
 //! - the `Host` header must name this server (a loopback name or address when it serves on
 //!   loopback), so a page on another site that rebinds its DNS name to 127.0.0.1 cannot read
 //!   the runs.
@@ -82,7 +82,13 @@ struct Slot {
     stream: TcpStream,
     /// Still waiting for its request head: may be closed to free the slot.
     waiting: Arc<AtomicBool>,
+    /// When it was accepted.
+    since: Instant,
 }
+
+/// How long a connection may wait for its head before a newcomer at the cap may take its slot: a
+/// burst of real requests is not closed under itself, while idle clients hold a slot this long.
+pub const EVICT_AFTER: Duration = Duration::from_millis(200);
 
 impl Slots {
     /// A slot for a new connection: a free one, else the oldest waiting one's (that connection
@@ -90,13 +96,14 @@ impl Slots {
     fn take(&self, stream: &TcpStream) -> Option<(usize, Arc<AtomicBool>)> {
         let mut held = self.held.lock().unwrap_or_else(|p| p.into_inner());
         if held.len() >= MAX_CONNECTIONS {
-            let oldest = held.iter().position(|s| s.waiting.load(Ordering::SeqCst))?;
+            let oldest =
+                held.iter().position(|s| s.waiting.load(Ordering::SeqCst) && s.since.elapsed() >= EVICT_AFTER)?;
             let _ = held.remove(oldest).stream.shutdown(Shutdown::Both);
         }
         let handle = stream.try_clone().ok()?;
         let id = self.next.fetch_add(1, Ordering::SeqCst);
         let waiting = Arc::new(AtomicBool::new(true));
-        held.push(Slot { id, stream: handle, waiting: Arc::clone(&waiting) });
+        held.push(Slot { id, stream: handle, waiting: Arc::clone(&waiting), since: Instant::now() });
         Some((id, waiting))
     }
 

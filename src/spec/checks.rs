@@ -149,3 +149,20 @@ fn search_episodes(
         ),
     ))
 }
+
+impl Spec {
+    /// When the epoch cap lies inside the patience genes' range: settings of a patience at or
+    /// above the cap can never stop early, so what the search tunes of them means nothing.
+    pub fn cap_inside_patience(&self) -> Option<String> {
+        let (cap, g) = (self.search.network.max_epochs, &self.search.genes);
+        let most = g.max_patience();
+        (most >= cap).then(|| {
+            format!(
+                "search.network.max_epochs = {cap} lies inside the patience range of search.genes.a_patience {:?} and \
+                 b_patience {:?} (up to {most}): a setting of patience ≥ {cap} never stops early, so its patience \
+                 is not tuned; raise max_epochs above {most} or narrow the patience genes",
+                g.a_patience, g.b_patience
+            )
+        })
+    }
+}

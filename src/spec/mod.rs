@@ -577,43 +577,6 @@ impl Spec {
         Ok(spec)
     }
 
-    /// When the epoch cap lies inside the patience genes' range: settings of a patience at or
-    /// above the cap can never stop early, so what the search tunes of them means nothing.
-    pub fn cap_inside_patience(&self) -> Option<String> {
-        let (cap, g) = (self.search.network.max_epochs, &self.search.genes);
-        let most = g.max_patience();
-        (most >= cap).then(|| {
-            format!(
-                "search.network.max_epochs = {cap} lies inside the patience range of search.genes.a_patience {:?} and \
-                 b_patience {:?} (up to {most}): a setting of patience ≥ {cap} never stops early, so its patience \
-                 is not tuned; raise max_epochs above {most} or narrow the patience genes",
-                g.a_patience, g.b_patience
-            )
-        })
-    }
-
-    /// Reads the resolved spec a run directory records (`spec.json`), as written: a gymnasium
-    /// env's spaces and logged data's hash, episodes and slots are already in it, so no worker is
-    /// started and no data read. The data hash is checked where datasets are made (a resume, a
-    /// reproduction); reading a run needs neither its env's Python nor its data.
-    pub fn load_recorded(path: &Path) -> Result<Spec> {
-        let value = Self::parse_value(&store::read_input(path)?, path)?;
-        crate::error::expect_object(&value, path, "a spec")?;
-        let spec: Spec = crate::error::from_json(value, path, "")?;
-        if let Some(g) = spec.env.env().gymnasium()
-            && g.probed.is_none()
-        {
-            return Err(file_error(path, "env.probed is missing: a run's spec records its env's spaces".into()));
-        }
-        if let Some(d) = &spec.data
-            && (d.hash.is_none() || d.episodes.is_none())
-        {
-            return Err(file_error(path, "data.hash or data.episodes is missing: a run's spec records them".into()));
-        }
-        spec.validate().map_err(|e| file_error(path, e.to_string()))?;
-        Ok(spec)
-    }
-
     /// Reads and validates a spec file.
     pub fn load(path: &Path) -> Result<Spec> {
         let text = store::read_input(path)?;
@@ -669,6 +632,7 @@ fn file_error(path: &Path, message: String) -> Error {
 }
 
 mod checks;
+mod recorded;
 pub(crate) use checks::holdout;
 pub mod template;
 
