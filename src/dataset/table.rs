@@ -74,7 +74,11 @@ pub fn from_table(t: &Table, path: &Path) -> Result<Dataset> {
         // One line, however wide the table: its first names and the count.
         const SHOWN: usize = 20;
         let names = t.names();
-        let mut has = names[..names.len().min(SHOWN)].join(", ");
+        let mut has = names[..names.len().min(SHOWN)]
+            .iter()
+            .map(|n| crate::error::shortened(n.clone()))
+            .collect::<Vec<_>>()
+            .join(", ");
         if names.len() > SHOWN {
             has.push_str(&format!(", … ({} columns)", names.len()));
         }

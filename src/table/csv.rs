@@ -54,6 +54,10 @@ fn quoted(s: &str) -> String {
     }
 }
 
+/// The longest field read, in bytes: a number or a name is tens of bytes, and a line of one huge
+/// field would otherwise be held whole before any check.
+pub const MAX_FIELD: usize = 1 << 20;
+
 /// Reads a CSV table. The file is read twice, streaming: once to check its shape and find each
 /// column's type, once to parse the values, so memory holds the table and not the text.
 pub fn read(path: &Path) -> Result<Table> {
@@ -256,6 +260,9 @@ impl<'a> Records<'a> {
                 Some(other) => {
                     bytes.push(other);
                     at_start = false;
+                    if bytes.len() > MAX_FIELD {
+                        return Err(self.refuse(self.line, &format!("a field longer than {} MiB", MAX_FIELD >> 20)));
+                    }
                 }
             }
         }
@@ -283,6 +290,9 @@ impl<'a> Records<'a> {
                         self.line += 1;
                     }
                     bytes.push(b);
+                    if bytes.len() > MAX_FIELD {
+                        return Err(self.refuse(start, &format!("a field longer than {} MiB", MAX_FIELD >> 20)));
+                    }
                 }
             }
         }
@@ -389,6 +399,10 @@ mod tests {
         assert!(refused(b"a\n\xff\n").contains("line 2: not UTF-8 text"));
         // Too many fields on a line: counted exactly, though only the header's are kept.
         assert!(refused(b"a,b\n1,2,3,4,5\n").contains("line 2: 5 fields, the header names 2"));
+        let long = [b"a\n".as_slice(), &vec![b'7'; MAX_FIELD + 1], b"\n"].concat();
+        assert!(refused(&long).contains("line 2: a field longer than 1 MiB"));
+        let quoted = [b"a\n\"".as_slice(), &vec![b'7'; MAX_FIELD + 1], b"\"\n"].concat();
+        assert!(refused(&quoted).contains("line 2: a field longer than 1 MiB"));
         let d = dir("dir");
         let e = read(&d).unwrap_err().to_string();
         assert!(e.contains("is a directory"), "{e}");
