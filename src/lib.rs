@@ -28,6 +28,7 @@ pub mod rng;
 pub mod rollout;
 pub mod run_dir;
 pub mod runs;
+pub mod selection;
 pub mod spec;
 pub mod stats;
 pub mod store;
