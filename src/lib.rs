@@ -16,6 +16,7 @@ pub mod eval;
 pub mod exec;
 pub mod experiment;
 pub mod export;
+pub mod fqe;
 pub mod fqi;
 pub mod ga;
 pub mod learn;

@@ -125,6 +125,8 @@ pub mod purpose {
     pub const MLP_INIT: &str = "mlp/init";
     /// A network's mini-batch shuffles, from the model's seed: `[]`.
     pub const MLP_SHUFFLE: &str = "mlp/shuffle";
+    /// Fit `k` of Fitted Q Evaluation, from its seed: `[k]`.
+    pub const FQE: &str = "fqe";
     /// Resample `b` of a selection statistic's bootstrap interval: `[b]`.
     pub const SELECTION_BOOTSTRAP: &str = "selection/bootstrap";
     /// The GA's own seed for an environment (`ga/cartpole`, …): `[]`.
