@@ -71,7 +71,8 @@ impl Dataset {
         self.episode.last().map_or(0, |&e| e as usize + 1)
     }
 
-    fn with_capacity(obs_dim: usize, n: usize) -> Self {
+    /// An empty dataset of `obs_dim`-value observations, with room for `n` transitions.
+    pub(crate) fn with_capacity(obs_dim: usize, n: usize) -> Self {
         Dataset {
             obs_dim,
             episode: Vec::with_capacity(n),

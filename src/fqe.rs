@@ -94,16 +94,7 @@ mod tests {
     /// the episode with reward 1 (absorbing), every other step gives 0. Episodes of random actions
     /// from 0, of at most 30 steps (a horizon cut, not absorbing).
     fn chain(episodes: u32) -> Dataset {
-        let mut d = Dataset {
-            obs_dim: 1,
-            episode: vec![],
-            step: vec![],
-            state: vec![],
-            action: vec![],
-            reward: vec![],
-            next_state: vec![],
-            absorbing: vec![],
-        };
+        let mut d = Dataset::with_capacity(1, 0);
         for e in 0..episodes {
             let mut r = rng::stream(7, "test/chain", &[u64::from(e)]);
             let mut x = 0.0f64;
@@ -136,40 +127,24 @@ mod tests {
         let trees = ExtraTreesParams { n_trees: 5, ..Default::default() };
         let right = |_: &[f64]| 1usize;
         let left = |_: &[f64]| 0usize;
+        let out = |_: &[f64]| 5usize;
+        let fqe = |encoding, iterations, policy: &dyn Fn(&[f64]) -> usize| {
+            evaluate(&d, &[0.0, 1.0], encoding, &trees, FqeSettings { iterations, gamma: 0.9 }, policy, 1)
+        };
         for encoding in [ActionEncoding::PerAction, ActionEncoding::Input] {
             // Always right from 0: four steps of 0, then 1 on the fifth, so V(0) = γ⁴.
-            let s = FqeSettings { iterations: 8, gamma: 0.9 };
-            let e = evaluate(&d, &[0.0, 1.0], encoding, &trees, s, &right, 1).unwrap();
+            let e = fqe(encoding, 8, &right).unwrap();
             assert_eq!(e.starts.len(), 40);
             assert!((e.value - 0.9f64.powi(4)).abs() < 1e-9, "{encoding:?}: {}", e.value);
             // Fewer fits than steps to the reward see none of it.
-            let short =
-                evaluate(&d, &[0.0, 1.0], encoding, &trees, FqeSettings { iterations: 4, gamma: 0.9 }, &right, 1);
-            assert!(short.unwrap().value.abs() < 1e-9);
+            assert!(fqe(encoding, 4, &right).unwrap().value.abs() < 1e-9);
             // Always left never reaches the reward.
-            let e = evaluate(&d, &[0.0, 1.0], encoding, &trees, s, &left, 1).unwrap();
+            let e = fqe(encoding, 8, &left).unwrap();
             assert!(e.value.abs() < 1e-9, "{encoding:?}: {}", e.value);
         }
-        let bad = evaluate(
-            &d,
-            &[0.0, 1.0],
-            ActionEncoding::PerAction,
-            &trees,
-            FqeSettings { iterations: 0, gamma: 0.9 },
-            &right,
-            1,
-        );
+        let bad = fqe(ActionEncoding::PerAction, 0, &right);
         assert!(bad.unwrap_err().to_string().contains("fqe.iterations"));
-        let out = |_: &[f64]| 5usize;
-        let e = evaluate(
-            &d,
-            &[0.0, 1.0],
-            ActionEncoding::PerAction,
-            &trees,
-            FqeSettings { iterations: 1, gamma: 0.9 },
-            &out,
-            1,
-        );
+        let e = fqe(ActionEncoding::PerAction, 1, &out);
         assert!(e.unwrap_err().to_string().contains("action 5 of 2"));
     }
 }

@@ -68,16 +68,7 @@ impl Env for Chain {
 
 /// Every (state, action) pair of the chain once.
 pub fn chain_data() -> Dataset {
-    let mut d = Dataset {
-        obs_dim: 1,
-        episode: vec![],
-        step: vec![],
-        state: vec![],
-        action: vec![],
-        reward: vec![],
-        next_state: vec![],
-        absorbing: vec![],
-    };
+    let mut d = Dataset::with_capacity(1, 0);
     for s in 0..5 {
         for a in [0.0, 1.0] {
             let n = Chain::next(s as f64, a);

@@ -316,7 +316,8 @@ pub fn fingerprint(dir: &Path) -> Result<String> {
         }
     }
     if dir.join("plan.json").is_file() && dir.join("batch.json").is_file() {
-        for job in batch_jobs(dir)? {
+        let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
+        for job in batch_jobs(dir, &jobs) {
             h.extend_from_slice(fingerprint(&job)?.as_bytes());
         }
     }
@@ -508,7 +509,7 @@ pub fn of_batch(dir: &Path, counting: Counting) -> Result<Work> {
     // batch.json's jobs, read for their directory and seconds only (the batch module shows this).
     let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
     let mut total = Tally::default().finish("batch", "other", None, Vec::new())?;
-    for job in batch_jobs(dir)? {
+    for job in batch_jobs(dir, &jobs) {
         // A job's own work.json stands for it while current.
         let w = match (counting, recorded(&job)) {
             (_, Some(w)) => w,
@@ -526,14 +527,12 @@ pub fn of_batch(dir: &Path, counting: Counting) -> Result<Work> {
     Ok(total)
 }
 
-/// The run directories of a batch's jobs (those that have one), in batch.json's order.
-fn batch_jobs(dir: &Path) -> Result<Vec<std::path::PathBuf>> {
-    let jobs: Vec<serde_json::Value> = read_json(&dir.join("batch.json"))?;
-    Ok(jobs
-        .iter()
+/// The run directories of a batch's `jobs` (batch.json's, those that have one), in order.
+fn batch_jobs(dir: &Path, jobs: &[serde_json::Value]) -> Vec<std::path::PathBuf> {
+    jobs.iter()
         .map(|j| dir.join(j["dir"].as_str().unwrap_or_default()))
         .filter(|job| *job != dir && (job.join("compare.json").is_file() || job.join("spec.json").is_file()))
-        .collect())
+        .collect()
 }
 
 #[cfg(test)]

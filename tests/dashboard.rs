@@ -364,20 +364,20 @@ fn a_run_written_during_requests_gives_no_error() {
     s.ok("/run/0/run");
 }
 
+/// `bfqi-ga dashboard ROOT ARGS` started, with the first line it printed (its URL).
+fn started(root: &Path, args: &[&str]) -> (std::process::Child, String) {
+    let mut child =
+        bin().arg("dashboard").arg(root).args(args).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    (child, line)
+}
+
 #[test]
 fn the_command_prints_its_url_and_warns_before_leaving_loopback() {
     let root: TempDir = empty_dir("dashboard", "cli");
     copy_dir(&committed().join("bicycle-compare-mlp-iterations"), &root.join("cmp"));
-    let mut child = bin()
-        .args(["dashboard"])
-        .arg(&*root)
-        .args(["--port", "0"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let (mut child, line) = started(&root, &["--port", "0"]);
     let url = line.trim().strip_prefix("bfqi-ga dashboard: ").unwrap_or_else(|| panic!("{line}")).to_string();
     assert!(url.starts_with("http://127.0.0.1:"), "{url}");
     let r = http_get(&url, "/run/0/cmp");
@@ -392,16 +392,7 @@ fn the_command_prints_its_url_and_warns_before_leaving_loopback() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!err.contains("serving on") && err.contains("cannot listen on 192.0.2.1"), "{err}");
     assert!(!o.status.success());
-    let mut child = bin()
-        .args(["dashboard"])
-        .arg(&*root)
-        .args(["--host", "0.0.0.0", "--port", "0"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let (mut child, line) = started(&root, &["--host", "0.0.0.0", "--port", "0"]);
     child.kill().unwrap();
     let mut err = String::new();
     std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();

@@ -242,7 +242,7 @@ fn remove_stale_builds(parent: &Path) {
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
         let Some((pid, owner)) = build_owner(&name) else { continue };
-        let dead = (owner.is_empty() || owner == here) && !Path::new(&format!("/proc/{pid}")).exists();
+        let dead = (owner.is_empty() || owner == here) && !running(pid);
         if dead && e.path().is_dir() {
             let _ = fs::remove_dir_all(e.path());
         }
@@ -261,6 +261,11 @@ pub fn remove_temporaries(dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Whether process `pid` of this machine is running.
+fn running(pid: u32) -> bool {
+    Path::new(&format!("/proc/{pid}")).exists()
+}
+
 /// Removes the temporary files ([`write_atomic`]'s `.<name>.tmp<pid>`) that killed writers of
 /// `path` left beside it: those of processes no longer running. Best effort: what cannot be
 /// removed stays.
@@ -271,11 +276,8 @@ pub fn remove_stale_temporaries(path: &Path) {
     let Ok(entries) = fs::read_dir(parent) else { return };
     for e in entries.flatten() {
         let file = e.file_name().to_string_lossy().into_owned();
-        let Some(pid) = file.strip_prefix(&prefix).and_then(|p| p.parse::<i32>().ok()) else { continue };
-        // Signal 0 asks only whether the process exists.
-        let gone =
-            unsafe { libc::kill(pid, 0) } != 0 && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH);
-        if gone && e.file_type().is_ok_and(|t| t.is_file()) {
+        let Some(pid) = file.strip_prefix(&prefix).and_then(|p| p.parse::<u32>().ok()) else { continue };
+        if !running(pid) && e.file_type().is_ok_and(|t| t.is_file()) {
             let _ = fs::remove_file(e.path());
         }
     }
@@ -353,7 +355,7 @@ impl RunLock {
                     let pid: Option<u32> = parts.next().and_then(|p| p.parse().ok());
                     let their_host = parts.next().unwrap_or("").to_string();
                     let alive = match pid {
-                        Some(p) if their_host == host() => Path::new(&format!("/proc/{p}")).exists(),
+                        Some(p) if their_host == host() => running(p),
                         // Empty or unreadable (a full disk while it was written): no process can
                         // be named as its holder, so it is stale.
                         None => {
@@ -392,7 +394,7 @@ impl RunLock {
     pub fn held_by(held: &str) -> bool {
         let mut parts = held.split_whitespace();
         match (parts.next().and_then(|p| p.parse::<u32>().ok()), parts.next()) {
-            (Some(p), Some(h)) if h == host() => Path::new(&format!("/proc/{p}")).exists(),
+            (Some(p), Some(h)) if h == host() => running(p),
             _ => true,
         }
     }
