@@ -198,6 +198,10 @@ pub enum Role {
     /// Re-scoring a search's top settings (`validate`); not offered by `dataset --role`.
     #[value(skip)]
     Validation,
+    /// Held-out episodes an offline fitness scores policies on (`search.fitness`, beyond the
+    /// thesis); never trained on.
+    #[value(skip)]
+    Heldout,
 }
 
 impl Role {
@@ -207,6 +211,7 @@ impl Role {
             Role::Compare => "compare",
             Role::Search => "search",
             Role::Validation => "validation",
+            Role::Heldout => "heldout",
         }
     }
 }

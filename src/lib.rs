@@ -23,6 +23,7 @@ pub mod learn;
 pub mod limits;
 pub mod machine;
 pub mod model;
+pub mod offline;
 pub mod progress;
 pub mod report;
 pub mod rng;

@@ -74,6 +74,14 @@ pub struct Slots {
     pub validation: usize,
     /// Comparison (and `run`) datasets.
     pub compare: usize,
+    /// Held-out sets of an offline fitness (`search.fitness`): 1 when it is offline, else 0 (and
+    /// absent, so specs written before it deal as they did).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub heldout: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Slots {
@@ -82,6 +90,7 @@ impl Slots {
             Role::Search => self.search,
             Role::Validation => self.validation,
             Role::Compare => self.compare,
+            Role::Heldout => self.heldout,
         }
     }
     fn offset(&self, role: Role) -> usize {
@@ -89,16 +98,18 @@ impl Slots {
             Role::Search => 0,
             Role::Validation => self.search,
             Role::Compare => self.search + self.validation,
+            Role::Heldout => self.search + self.validation + self.compare,
         }
     }
     fn noun(role: Role) -> &'static str {
         match role {
             Role::Compare => "comparison",
+            Role::Heldout => "held-out",
             other => other.name(),
         }
     }
     fn total(&self) -> usize {
-        self.search + self.validation + self.compare
+        self.search + self.validation + self.compare + self.heldout
     }
 }
 
@@ -112,6 +123,8 @@ pub struct Needs {
     pub validation: usize,
     /// Comparison datasets (the most any preset or sample analysis takes).
     pub compare: usize,
+    /// Held-out sets (1 with an offline fitness).
+    pub heldout: usize,
     /// `(field, encoding)` of every learner the spec configures.
     pub encodings: Vec<(String, ActionEncoding)>,
 }
@@ -279,11 +292,24 @@ impl DataSource {
                 if self.slots.is_some() {
                     return Err(Error::invalid("data.slots", "set", "applies to split \"disjoint\" only"));
                 }
+                if needs.heldout > 0 {
+                    return Err(Error::invalid(
+                        "data.split",
+                        "bootstrap",
+                        "draws every dataset from all episodes, so none is held out: an offline fitness \
+                         (search.fitness) needs \"disjoint\"",
+                    ));
+                }
             }
             Split::Disjoint => {
                 // Slots the spec file sets are kept (fewer comparison slots than a sample
                 // analysis it never runs, say); a role asking more is refused where it is used.
-                let asked = Slots { search: needs.search, validation: needs.validation, compare: needs.compare };
+                let asked = Slots {
+                    search: needs.search,
+                    validation: needs.validation,
+                    compare: needs.compare,
+                    heldout: needs.heldout,
+                };
                 self.slots.get_or_insert(asked);
             }
         }
@@ -454,7 +480,13 @@ mod tests {
     }
 
     fn needs(search: usize, validation: usize, compare: usize) -> Needs {
-        Needs { search, validation, compare, encodings: vec![("search.actions".into(), ActionEncoding::PerAction)] }
+        Needs {
+            search,
+            validation,
+            compare,
+            heldout: 0,
+            encodings: vec![("search.actions".into(), ActionEncoding::PerAction)],
+        }
     }
 
     fn source(path: &Path, split: Split) -> DataSource {
@@ -481,7 +513,7 @@ mod tests {
         let mut s = source(&path, Split::Disjoint);
         s.resolve(&c, &needs(3, 2, 4)).unwrap();
         assert_eq!(s.episodes, Some(60));
-        assert_eq!(s.slots, Some(Slots { search: 3, validation: 2, compare: 4 }));
+        assert_eq!(s.slots, Some(Slots { search: 3, validation: 2, compare: 4, heldout: 0 }));
         let all = episodes(&logged);
         let mut seen = std::collections::HashSet::new();
         for (role, n) in [(Role::Search, 3), (Role::Validation, 2), (Role::Compare, 4)] {
@@ -548,7 +580,7 @@ mod tests {
         assert!(e.contains("data.hash") && e.contains("not the data"), "{e}");
         // Slots set in the spec are kept; a role asking more datasets is refused where it is used.
         let mut s = source(&path, Split::Disjoint);
-        s.slots = Some(Slots { search: 1, validation: 0, compare: 1 });
+        s.slots = Some(Slots { search: 1, validation: 0, compare: 1, heldout: 0 });
         s.resolve(&cartpole, &needs(2, 0, 1)).unwrap();
         let e = s.check(Role::Search, 2, 1).unwrap_err().to_string();
         assert!(e.contains("data.slots.search") && e.contains("2 search datasets"), "{e}");

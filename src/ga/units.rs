@@ -49,6 +49,14 @@ pub struct UnitResult {
     /// collects its datasets again. (Absent in units written before it was recorded.)
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rows: Option<Vec<usize>>,
+    /// With an offline fitness (`search.fitness`): what FQE measured on the held-out episodes,
+    /// whose estimate is `score`. Absent with the online fitness.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offline: Option<crate::offline::OfflineScore>,
+    /// With an offline fitness where the env can be simulated: the greedy policy's online score,
+    /// recorded (never used by the search) so that the two fitnesses can be compared.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub online: Option<f64>,
     /// [`Spec::results_hash`] of the run that computed it: a unit from another spec is not reused.
     /// (Absent in units written before it was recorded.)
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -201,6 +209,8 @@ pub struct Evaluator {
     /// The run's `run.json` says every unit carries a checksum ([`checksummed`]).
     checksummed: bool,
     data: Mutex<HashMap<usize, Arc<(Dataset, Encoded)>>>,
+    /// The offline fitness's held-out set, collected on first use.
+    heldout: Mutex<Option<Arc<Dataset>>>,
     warned: Mutex<std::collections::HashSet<String>>,
 }
 
@@ -220,6 +230,7 @@ impl Evaluator {
             role,
             checksummed: checksummed(dir),
             data: Mutex::new(HashMap::new()),
+            heldout: Mutex::new(None),
             warned: Mutex::new(Default::default()),
         }
     }
@@ -251,6 +262,22 @@ impl Evaluator {
         let x = Arc::new(self.collect(d)?);
         self.data.lock().expect("dataset cache").insert(d, x.clone());
         Ok(x)
+    }
+
+    /// The offline fitness's held-out set ([`crate::offline`]): dataset 0 of the `heldout` role,
+    /// of `search.fitness.episodes` episodes, shared by every unit (collected on first use).
+    pub fn heldout(&self) -> Result<Arc<Dataset>> {
+        let Some(f) = self.spec.search.fitness.fqe() else {
+            return Err(Error::Usage("the spec's fitness is online: it has no held-out set".into()));
+        };
+        let mut held = self.heldout.lock().expect("held-out set");
+        if let Some(h) = &*held {
+            return Ok(h.clone());
+        }
+        let (env, role) = (self.spec.env.env(), dataset::Role::Heldout);
+        let h = Arc::new(dataset::make(env, self.spec.data.as_ref(), f.episodes, self.spec.seed, role, 0)?);
+        *held = Some(h.clone());
+        Ok(h)
     }
 
     /// The rows each network of dataset `d` is fitted on (one per action with `per_action`), and
@@ -344,6 +371,26 @@ impl Evaluator {
         let (fit_seed, eval_seed) = self.seeds(s, d);
         let fqi = Fqi::new(self.spec.env.env(), data, enc, &params, self.fqi_settings(), fit_seed, eval_seed);
         let (rec, members) = fqi.run_keeping(|_| {})?;
+        let offline = match self.spec.search.fitness.fqe() {
+            Some(f) if rec.diverged.is_none() => {
+                let env = self.spec.env.env();
+                let seed = rng::derive(self.spec.seed, rng::purpose::FQE, &[]);
+                let search = &self.spec.search;
+                let held = self.heldout()?;
+                let o = crate::offline::score(
+                    &held,
+                    env.actions(),
+                    search.actions,
+                    f,
+                    &members,
+                    env.gamma(),
+                    search.iterations,
+                    seed,
+                )?;
+                Some(o)
+            }
+            _ => None,
+        };
         let model = (keep && rec.diverged.is_none()).then(|| {
             let (tool_version, commit) = crate::model::build_stamp();
             let search = &self.spec.search;
@@ -365,16 +412,22 @@ impl Evaluator {
             Model { info, q: QFunction::Nets(members) }
         });
         let last = rec.iterations.last();
+        let online = rec.final_score();
         let mut unit = UnitResult {
             setting: *s,
             dataset: d,
-            score: rec.final_score(),
+            score: match &offline {
+                Some(o) => o.estimate.is_finite().then_some(o.estimate),
+                None => online,
+            },
             steps: if rec.diverged.is_some() { None } else { last.and_then(|r| r.steps) },
             diverged: rec.diverged.clone(),
             epochs: rec.iterations.iter().filter_map(|r| r.epochs).sum(),
             seconds: t.elapsed().as_secs_f64(),
             iterations: rec.iterations,
             rows: Some(network_rows(enc)),
+            online: offline.as_ref().and(online),
+            offline,
             spec_hash: Some(self.results_hash.clone()),
             checksum: None,
         };

@@ -332,6 +332,20 @@ impl<M: Regressor> QModel<M> {
             }
         }
     }
+
+    /// `Q(obs, action)` at one action's feature value: any value with `Input` (a logged continuous
+    /// action), one of `actions` with `PerAction` (`None` otherwise).
+    pub fn q_at(&self, obs: &[f64], action: f64, actions: &[f64]) -> Option<f64> {
+        match self {
+            QModel::Input(m) => {
+                let mut row = Vec::with_capacity(obs.len() + 1);
+                row.extend_from_slice(obs);
+                row.push(action);
+                Some(m.predict_row(&row))
+            }
+            QModel::PerAction(ms) => actions.iter().position(|&a| a == action).map(|j| ms[j].predict_row(obs)),
+        }
+    }
 }
 
 /// The first index of the largest value (ties go to the first action, SPEC §1).

@@ -199,6 +199,10 @@ pub struct SearchSpec {
     /// as Optuna's `enqueue_trial` does; none when absent.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub seeded: Vec<crate::ga::chromosome::Chromosome>,
+    /// How settings are scored: in the simulator (the thesis's, the default) or offline, by FQE
+    /// on held-out logged episodes (beyond the thesis; [`crate::offline`]).
+    #[serde(default, skip_serializing_if = "crate::offline::Fitness::is_online")]
+    pub fitness: crate::offline::Fitness,
 }
 
 impl SearchSpec {
@@ -226,6 +230,7 @@ impl SearchSpec {
             ensure(s >= 1, "stop.stall_generations", s, "must be ≥ 1")?;
         }
         self.prune.validate()?;
+        self.fitness.validate(horizon)?;
         if let Some(r) = &self.race {
             r.validate(self.datasets)?;
             ensure(
@@ -566,6 +571,7 @@ impl Spec {
         let mut spec: Spec = crate::error::from_json(value, origin, "")?;
         // A gymnasium env's spaces are asked of its worker the first time (`env.probed`).
         spec.env.resolve().map_err(|e| file_error(origin, e.to_string()))?;
+        spec.search.fitness.resolve(spec.env.env());
         spec.validate().map_err(|e| file_error(origin, e.to_string()))?;
         let needs = spec.data_needs();
         if let Some(d) = &mut spec.data {
@@ -598,6 +604,7 @@ impl Spec {
             search: s.datasets,
             validation: s.validate.as_ref().map_or(0, |v| v.datasets),
             compare: samples.chain([et.datasets, mlp.datasets]).max().unwrap_or(0),
+            heldout: usize::from(!s.fitness.is_online()),
             encodings: vec![
                 ("search.actions".into(), s.actions),
                 ("experiments.et.actions".into(), et.actions),
@@ -612,6 +619,9 @@ impl Spec {
         let Some(d) = &self.data else { return Ok(()) };
         use crate::dataset::Role;
         d.check(Role::Search, self.search.datasets, self.search.episodes)?;
+        if let Some(f) = self.search.fitness.fqe() {
+            d.check(Role::Heldout, 1, f.episodes)?;
+        }
         match &self.search.validate {
             Some(v) => d.check(Role::Validation, v.datasets, self.search.episodes),
             None => Ok(()),
