@@ -44,20 +44,51 @@ pub fn evaluate<L: Learner>(
     policy: &dyn Fn(&[f64]) -> usize,
     seed: u64,
 ) -> Result<Estimate> {
+    let od = data.obs_dim;
+    let next: Vec<usize> = (0..data.len()).map(|i| policy(&data.next_state[i * od..(i + 1) * od])).collect();
+    let first: Vec<usize> = starts(data).iter().map(|&i| policy(&data.state[i * od..(i + 1) * od])).collect();
+    evaluate_chosen(data, actions, encoding, learner, settings, Chosen { next: &next, first: &first }, seed)
+}
+
+/// The rows of `data` that start an episode (step 0), in order.
+pub fn starts(data: &Dataset) -> Vec<usize> {
+    (0..data.len()).filter(|&i| data.step[i] == 0).collect()
+}
+
+/// The policy's actions (indices of `actions`) where FQE needs them.
+#[derive(Debug, Clone, Copy)]
+pub struct Chosen<'a> {
+    /// At each row's next state.
+    pub next: &'a [usize],
+    /// At each episode start ([`starts`]'s rows, in order).
+    pub first: &'a [usize],
+}
+
+/// [`evaluate`] with the policy's actions already chosen: for a caller that computes the policy's
+/// Q values on those states anyway (the offline fitness's baselines), so that it does once.
+pub fn evaluate_chosen<L: Learner>(
+    data: &Dataset,
+    actions: &[f64],
+    encoding: ActionEncoding,
+    learner: &L,
+    settings: FqeSettings,
+    chosen: Chosen<'_>,
+    seed: u64,
+) -> Result<Estimate> {
     crate::error::ensure(settings.iterations >= 1, "fqe.iterations", settings.iterations, "must be ≥ 1")?;
     let g = settings.gamma;
     crate::error::ensure((0.0..=1.0).contains(&g), "fqe.gamma", g, "must be in [0, 1]")?;
     let (n, od, na) = (data.len(), data.obs_dim, actions.len());
-    let starts: Vec<usize> = (0..n).filter(|&i| data.step[i] == 0).collect();
+    let starts = starts(data);
     if starts.is_empty() {
         return Err(Error::Data("FQE needs episode starts (step 0) to estimate a value from".into()));
     }
-    let pick = |obs: &[f64]| {
-        let a = policy(obs);
-        (a < na).then_some(a).ok_or_else(|| Error::Data(format!("the policy chose action {a} of {na}")))
-    };
-    let next_action: Vec<usize> =
-        (0..n).map(|i| pick(&data.next_state[i * od..(i + 1) * od])).collect::<Result<_>>()?;
+    if chosen.next.len() != n || chosen.first.len() != starts.len() {
+        return Err(Error::Data("FQE needs the policy's action at every next state and episode start".into()));
+    }
+    if let Some(&a) = chosen.next.iter().chain(chosen.first).find(|&&a| a >= na) {
+        return Err(Error::Data(format!("the policy chose action {a} of {na}")));
+    }
     let enc = Encoded::new(data, actions, encoding)?;
     let mut y = data.reward.clone();
     let (mut out, mut out_next) = (vec![0.0; n], vec![0.0; n * na]);
@@ -66,22 +97,22 @@ pub fn evaluate<L: Learner>(
         let s = rng::derive(seed, rng::purpose::FQE, &[k as u64]);
         let (q, _, _) = enc.fit_predict_next(learner, &y, s, &mut out, &mut out_next)?;
         for i in 0..n {
-            let future = if data.absorbing[i] { 0.0 } else { out_next[i * na + next_action[i]] };
+            let future = if data.absorbing[i] { 0.0 } else { out_next[i * na + chosen.next[i]] };
             y[i] = data.reward[i] + g * future;
         }
         last = Some(q);
     }
     let q = last.expect("at least one iteration");
     let (mut scratch, mut values) = (vec![0.0; na], vec![0.0; na]);
-    let starts = starts
+    let starts: Vec<f64> = starts
         .iter()
-        .map(|&i| {
-            let obs = &data.state[i * od..(i + 1) * od];
-            values.iter_mut().for_each(|v| *v = 0.0);
-            q.add_q_values(obs, actions, &mut scratch, &mut values);
-            Ok(values[pick(obs)?])
+        .zip(chosen.first)
+        .map(|(&i, &a)| {
+            values.fill(0.0);
+            q.add_q_values(&data.state[i * od..(i + 1) * od], actions, &mut scratch, &mut values);
+            values[a]
         })
-        .collect::<Result<Vec<f64>>>()?;
+        .collect();
     Ok(Estimate { value: starts.iter().sum::<f64>() / starts.len() as f64, starts })
 }
 

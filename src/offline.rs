@@ -149,36 +149,42 @@ pub fn score<M: Regressor>(
     fqi_iterations: usize,
     seed: u64,
 ) -> Result<OfflineScore> {
-    let na = actions.len();
-    let q = |obs: &[f64]| {
-        let (mut scratch, mut out) = (vec![0.0; na], vec![0.0; na]);
-        for m in members {
-            m.add_q_values(obs, actions, &mut scratch, &mut out);
+    let (na, od, n) = (actions.len(), held.obs_dim, held.len());
+    // Q(·, a) of FQI's Q-function at every next state and episode start, computed once: the
+    // policy's actions, its own value and the TD targets all read them.
+    let (mut scratch, mut row) = (vec![0.0; na], vec![0.0; na]);
+    let mut q_of = |states: &[f64], rows: &mut dyn Iterator<Item = usize>| -> Vec<f64> {
+        let mut out = Vec::new();
+        for i in rows {
+            row.fill(0.0);
+            for m in members {
+                m.add_q_values(&states[i * od..(i + 1) * od], actions, &mut scratch, &mut row);
+            }
+            out.extend_from_slice(&row);
         }
         out
     };
-    let policy = |obs: &[f64]| argmax(&q(obs));
-    let e = fqe::evaluate(held, actions, encoding, &fitness.learner, fitness.settings(), &policy, seed)?;
-    let od = held.obs_dim;
-    let starts: Vec<usize> = (0..held.len()).filter(|&i| held.step[i] == 0).collect();
-    let own: f64 = starts
-        .iter()
-        .map(|&i| q(&held.state[i * od..(i + 1) * od]).into_iter().fold(f64::NEG_INFINITY, f64::max))
-        .sum::<f64>()
-        / starts.len() as f64;
+    let starts = fqe::starts(held);
+    let q_next = q_of(&held.next_state, &mut (0..n));
+    let q_first = q_of(&held.state, &mut starts.iter().copied());
+    let greedy = |q: &[f64]| q.chunks_exact(na).map(argmax).collect::<Vec<usize>>();
+    let (next, first) = (greedy(&q_next), greedy(&q_first));
+    let chosen = fqe::Chosen { next: &next, first: &first };
+    let e = fqe::evaluate_chosen(held, actions, encoding, &fitness.learner, fitness.settings(), chosen, seed)?;
+    let own = first.iter().enumerate().map(|(j, &a)| q_first[j * na + a]).sum::<f64>() / starts.len().max(1) as f64;
     let mut sq = 0.0;
-    for i in 0..held.len() {
+    for i in 0..n {
         let s = &held.state[i * od..(i + 1) * od];
         let here: f64 = members.iter().map(|m| m.q_at(s, held.action[i], actions).unwrap_or(f64::NAN)).sum();
-        let next = q(&held.next_state[i * od..(i + 1) * od]).into_iter().fold(f64::NEG_INFINITY, f64::max);
-        let target = held.reward[i] + if held.absorbing[i] { 0.0 } else { fqi_gamma * next };
+        let best = q_next[i * na + next[i]];
+        let target = held.reward[i] + if held.absorbing[i] { 0.0 } else { fqi_gamma * best };
         sq += (target - here).powi(2);
     }
     Ok(OfflineScore {
         estimate: e.value / fitness.scale(fitness.iterations),
         own_value: own / fitness.scale(fqi_iterations),
-        td_error: sq / held.len().max(1) as f64,
-        rows: held.len(),
+        td_error: sq / n.max(1) as f64,
+        rows: n,
         fits: fitness.iterations,
     })
 }
